@@ -1,0 +1,36 @@
+# dynaorb: the two commands of the README, and their parts.
+#   make demo   set up, build, run SLAM on the built-in synthetic dynamic sequence
+#   make test   set up, build, run every test (gtest + rostest through ctest, then pytest)
+SHELL := /bin/bash
+ROOT := $(CURDIR)
+BUILD := $(ROOT)/build
+VENV := $(ROOT)/.venv
+PY := $(VENV)/bin/python3
+JOBS ?= 2
+export ROS_HOSTNAME ?= localhost
+export ROS_HOME := $(BUILD)/ros_home
+export ROS_LOG_DIR := $(BUILD)/ros_home/log
+export MPLBACKEND := Agg
+export PATH := $(VENV)/bin:$(PATH)
+
+.PHONY: demo test setup build clean
+
+setup:
+	@bash scripts/setup.sh
+
+$(BUILD)/CMakeCache.txt: | setup
+	cmake -S $(ROOT) -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DPYTHON_EXECUTABLE=$(PY)
+
+build: setup $(BUILD)/CMakeCache.txt
+	cmake --build $(BUILD) -j$(JOBS)
+
+demo: build
+	$(PY) -m dynaorb demo --out $(ROOT)/out/demo
+
+test: build
+	@mkdir -p $(ROS_LOG_DIR)
+	cd $(BUILD) && ctest --output-on-failure -j$(JOBS)
+	$(PY) -m pytest -q
+
+clean:
+	rm -rf $(BUILD)

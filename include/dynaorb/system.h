@@ -1,0 +1,78 @@
+#pragma once
+// The public API of dynaorb: one System per camera, fed frame by frame.
+// ROS nodes, the pybind11 module and the dataset runners are thin adapters
+// over this class. Thread-compatible: one caller thread feeds a System.
+#include <map>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+
+#include "dynaorb/core/pose.h"
+#include "dynaorb/core/sensor.h"
+#include "dynaorb/io/settings.h"
+
+namespace dynaorb {
+
+enum class TrackingState {
+  kNoImagesYet,     // nothing fed yet
+  kNotInitialized,  // frames accepted, no map yet
+  kOk,              // pose estimated for this frame
+  kLost,            // pose could not be estimated for this frame
+};
+std::string to_string(TrackingState state);
+
+// Why a frame was refused before it reached tracking.
+enum class RejectReason { kNone, kEmptyImage, kWrongSize, kWrongType, kStampNotIncreasing };
+std::string to_string(RejectReason reason);
+
+struct TrackResult {
+  TrackingState state = TrackingState::kNoImagesYet;
+  RejectReason rejected = RejectReason::kNone;
+  std::optional<Pose> pose;                  // T_world_camera when state == kOk
+  std::string message;                       // human-readable detail for rejections
+  std::map<std::string, double> stage_ms;    // per-stage wall time for this frame
+  int invalid_depth_pixels = 0;              // NaN / zero / negative depth (RGB-D)
+  bool mask_used = false;                    // a valid mask came with the frame
+};
+
+struct SystemCounters {
+  long frames = 0;          // frames offered
+  long rejected = 0;        // frames refused (see rejected_by_reason)
+  long tracked = 0;         // frames with state kOk
+  long masks_dropped = 0;   // masks ignored because of a wrong size or type
+  std::map<std::string, long> rejected_by_reason;
+};
+
+class System {
+ public:
+  // Validates the settings for the sensor (throws InputError naming the key).
+  System(const Settings& settings, Sensor sensor);
+  ~System();
+  System(const System&) = delete;
+  System& operator=(const System&) = delete;
+
+  // Images as stored by the camera (8-bit grey, BGR, or RGB when Camera.RGB=1
+  // and the image came from a ROS topic); depth 16UC1 (scaled by
+  // DepthMapFactor) or 32FC1 metres. `mask` (optional): 8-bit, same size as
+  // the image, non-zero marks pixels whose keypoints stay out of tracking and
+  // mapping (a label image is accepted: any non-zero label is "masked" unless
+  // the dynamic front end decides otherwise).
+  TrackResult track_mono(const cv::Mat& image, double stamp, const cv::Mat& mask = cv::Mat());
+  TrackResult track_stereo(const cv::Mat& left, const cv::Mat& right, double stamp,
+                           const cv::Mat& mask = cv::Mat());
+  TrackResult track_rgbd(const cv::Mat& image, const cv::Mat& depth, double stamp,
+                         const cv::Mat& mask = cv::Mat());
+
+  Sensor sensor() const;
+  const Settings& settings() const;
+  const SystemCounters& counters() const;
+  Trajectory trajectory() const;  // poses of tracked frames, in order
+  void reset();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace dynaorb

@@ -1,0 +1,3 @@
+from dynaorb.cli import main
+
+raise SystemExit(main())

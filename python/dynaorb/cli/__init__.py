@@ -1,0 +1,4 @@
+"""The `dynaorb` command line."""
+from dynaorb.cli.main import main
+
+__all__ = ["main"]

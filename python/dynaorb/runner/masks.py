@@ -1,0 +1,40 @@
+"""Per-frame masks from a folder (a mask cache, or synthetic label / ground-truth masks).
+
+The mask of a frame is the file in the folder with the frame image's name
+(TUM: <stamp>.png, KITTI: %06d.png, EuRoC: <ns>.png). Missing or unreadable
+masks are counted, not fatal: the frame runs without one.
+"""
+from __future__ import annotations
+
+import collections
+import logging
+import pathlib
+
+import cv2
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+
+class MaskFolder:
+    def __init__(self, folder: str | pathlib.Path):
+        self.folder = pathlib.Path(folder)
+        if not self.folder.is_dir():
+            raise FileNotFoundError(f"{self.folder}: mask folder does not exist")
+        self.counts = collections.Counter()
+
+    def for_image(self, image_path: str, shape: tuple[int, int]) -> np.ndarray | None:
+        path = self.folder / pathlib.Path(image_path).name
+        if not path.is_file():
+            self.counts["missing"] += 1
+            if self.counts["missing"] == 1:
+                log.warning("no mask for %s in %s (further misses are counted only)", image_path, self.folder)
+            return None
+        mask = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if mask is None or mask.ndim != 2 or mask.shape != tuple(shape):
+            self.counts["unusable"] += 1
+            log.warning("mask %s is unreadable or not %dx%d single-channel: frame runs without it",
+                        path, shape[1], shape[0])
+            return None
+        self.counts["used"] += 1
+        return np.ascontiguousarray(mask.astype(np.uint8) if mask.dtype != np.uint16 else mask)

@@ -1,0 +1,221 @@
+"""A textured room with static boxes and moving objects, ray-cast per pixel.
+
+World ("room") frame: x right, y down, z forward (the optical convention of the
+first camera, up to its offset), the floor at y = +FLOOR_Y. Every surface (the
+room's six slabs included) is an axis-aligned box face, so a ray hits it by the slab method; each hit carries
+texture coordinates in metres on its face, sampled from a mip pyramid.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import cv2
+import numpy as np
+
+from dynaorb.synth.textures import TextureBank, pyramid
+
+PERSON, CAR = 15, 7  # PASCAL VOC ids (what a segmentation network would output)
+FLOOR_Y = 1.4        # camera height above the floor [m]
+CEIL_Y = -1.6        # ceiling 3 m above the floor
+ROOM_HALF_WIDTH = 4.2
+# Brightness of a face by its normal axis (x: side walls, y: floor/ceiling, z: front/back).
+FACE_SHADE = np.array([0.82, 1.0, 0.93], np.float32)
+
+
+@dataclasses.dataclass
+class Box:
+    name: str
+    lo: np.ndarray          # min corner at t = 0 [m]
+    hi: np.ndarray          # max corner at t = 0 [m]
+    texture: list           # mip pyramid (uint8 grey or BGR)
+    texels_per_m: float
+    label: int = 0          # VOC class id in the label image (0: background)
+    velocity: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
+    t_start: float = -math.inf  # the object moves only between t_start and t_end
+    t_end: float = math.inf
+
+    @property
+    def moving(self) -> bool:
+        return bool(np.any(self.velocity != 0))
+
+    def corners(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        d = self.velocity * float(np.clip(t, self.t_start, self.t_end))
+        return self.lo + d, self.hi + d
+
+    def moving_at(self, t: float) -> bool:
+        return self.moving and self.t_start <= t <= self.t_end
+
+
+@dataclasses.dataclass
+class CameraPath:
+    """A smooth forward path with gentle sway, bob and head rotation."""
+    speed: float = 0.8           # m/s along z
+    sway: float = 0.25           # lateral amplitude [m]
+    bob: float = 0.04            # vertical amplitude [m]
+    yaw: float = math.radians(6)
+    pitch: float = math.radians(2)
+    roll: float = math.radians(1)
+    z0: float = 0.0
+
+    def pose(self, t: float) -> np.ndarray:
+        """T_room_camera (4x4) at time t."""
+        x = self.sway * math.sin(2 * math.pi * t / 7.0)
+        y = self.bob * math.sin(2 * math.pi * t / 1.1)
+        z = self.z0 + self.speed * t
+        yaw = self.yaw * math.sin(2 * math.pi * t / 5.0 + 0.4)
+        pitch = self.pitch * math.sin(2 * math.pi * t / 3.3)
+        roll = self.roll * math.sin(2 * math.pi * t / 4.1)
+        r = cv2.Rodrigues(np.array([0.0, yaw, 0.0]))[0] @ cv2.Rodrigues(np.array([pitch, 0.0, 0.0]))[0] \
+            @ cv2.Rodrigues(np.array([0.0, 0.0, roll]))[0]
+        T = np.eye(4)
+        T[:3, :3] = r
+        T[:3, 3] = (x, y, z)
+        return T
+
+
+@dataclasses.dataclass
+class Scene:
+    boxes: list
+    path: CameraPath
+    duration: float
+
+    def movers(self) -> list[Box]:
+        return [b for b in self.boxes if b.moving]
+
+
+def build_scene(bank: TextureBank, rng: np.random.Generator, *, movers: int, duration: float,
+                colour: bool) -> Scene:
+    """The room, static furniture, a parked car, and `movers` moving objects.
+
+    Mover 0 is a person crossing; mover 1 a vehicle travelling beside the camera
+    in its direction of motion (its points satisfy the epipolar constraint);
+    further movers are more people crossing at other times and distances.
+    """
+    tex = (lambda size=512: pyramid(bank.colour(size))) if colour else (lambda size=512: pyramid(bank.grey(size)))
+    path = CameraPath()
+    length = path.speed * duration
+    z_min, z_max = -3.0, length + 9.0
+    # The room: six slabs, each with its own texture (floor, ceiling, walls).
+    W, T = ROOM_HALF_WIDTH, 0.2
+    slabs = {
+        "floor": ([-W, FLOOR_Y, z_min], [W, FLOOR_Y + T, z_max]),
+        "ceiling": ([-W, CEIL_Y - T, z_min], [W, CEIL_Y, z_max]),
+        "wall_left": ([-W - T, CEIL_Y, z_min], [-W, FLOOR_Y, z_max]),
+        "wall_right": ([W, CEIL_Y, z_min], [W + T, FLOOR_Y, z_max]),
+        "wall_back": ([-W, CEIL_Y, z_min - T], [W, FLOOR_Y, z_min]),
+        "wall_front": ([-W, CEIL_Y, z_max], [W, FLOOR_Y, z_max + T]),
+    }
+    boxes = [Box(name, np.array(lo, float), np.array(hi, float), tex(1024), texels_per_m=180.0)
+             for name, (lo, hi) in slabs.items()]
+    # Static furniture along the walls (depth structure for the tracker).
+    z = 1.0
+    while z < z_max - 2.0:
+        side = -1 if rng.random() < 0.5 else 1
+        w, h, d = rng.uniform(0.5, 1.0), rng.uniform(0.6, 2.2), rng.uniform(0.6, 1.6)
+        x_wall = side * ROOM_HALF_WIDTH
+        lo = np.array([x_wall - (w if side > 0 else 0), FLOOR_Y - h, z])
+        boxes.append(Box(f"furniture{len(boxes)}", lo, lo + np.array([w, h, d]), tex(), texels_per_m=260.0))
+        z += d + rng.uniform(1.0, 3.0)
+    # A parked car: a movable class that does not move.
+    zc = 0.45 * length + 4.0
+    boxes.append(Box("parked_car", np.array([-3.6, FLOOR_Y - 1.4, zc]), np.array([-1.9, FLOOR_Y, zc + 3.8]),
+                     tex(), texels_per_m=200.0, label=CAR))
+
+    people = [i for i in range(movers) if i != 1]
+    for k, i in enumerate(people):
+        # Crossing the camera's path around time tc, ahead of the camera by `ahead` metres.
+        tc = duration * (k + 0.5) / max(len(people), 1)
+        ahead = rng.uniform(2.2, 3.2)
+        speed = rng.uniform(0.9, 1.4) * (1 if k % 2 == 0 else -1)
+        w, h, d = 0.55, 1.75, 0.35
+        cz = path.pose(tc)[2, 3] + ahead
+        cx0 = path.pose(tc)[0, 3] - speed * tc  # at x = camera x at tc
+        lo = np.array([cx0 - w / 2, FLOOR_Y - h, cz - d / 2])
+        boxes.append(Box(f"person{i}", lo, lo + np.array([w, h, d]), tex(256), texels_per_m=300.0,
+                         label=PERSON, velocity=np.array([speed, 0.0, 0.0]),
+                         t_start=0.0, t_end=duration))
+    if movers >= 2:
+        # A vehicle to the right, driving the camera's way slightly faster.
+        v = path.speed * 1.15
+        lo = np.array([0.9, FLOOR_Y - 1.45, 2.0])
+        boxes.append(Box("vehicle", lo, lo + np.array([1.7, 1.45, 3.9]), tex(), texels_per_m=220.0,
+                         label=CAR, velocity=np.array([0.0, 0.0, v]), t_start=0.0, t_end=duration))
+    return Scene(boxes=boxes, path=path, duration=duration)
+
+
+def _sample(tex: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Bilinear texture lookup at (x, y) with wrap-around (cv2.remap on a 2-D map,
+    as remap takes at most 32767 rows)."""
+    n, cols = x.size, 1024
+    rows = -(-n // cols)
+    mx = np.zeros(rows * cols, np.float32)
+    my = np.zeros(rows * cols, np.float32)
+    mx[:n], my[:n] = x, y
+    out = cv2.remap(tex, mx.reshape(rows, cols), my.reshape(rows, cols), cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_WRAP)
+    return out.reshape(rows * cols, -1)[:n].astype(np.float32)
+
+
+class Renderer:
+    """Pinhole ray caster for one image size and intrinsics."""
+
+    def __init__(self, K: np.ndarray, width: int, height: int):
+        self.K, self.width, self.height = K, width, height
+        u, v = np.meshgrid(np.arange(width, dtype=np.float64) + 0.0, np.arange(height, dtype=np.float64))
+        rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], -1)
+        self.rays = rays.reshape(-1, 3)  # z = 1: the ray parameter t is the depth
+        self.ray_len = np.linalg.norm(self.rays, axis=1)
+
+    def render(self, scene: Scene, T_room_cam: np.ndarray, t: float):
+        """(image uint8, depth float32 metres, box index int16 per pixel)."""
+        R, o = T_room_cam[:3, :3], T_room_cam[:3, 3]
+        d = self.rays @ R.T
+        d = np.where(np.abs(d) < 1e-12, 1e-12, d)
+        inv = 1.0 / d
+        n = d.shape[0]
+        best_t = np.full(n, np.inf)
+        best_box = np.full(n, -1, np.int16)
+        best_axis = np.zeros(n, np.int8)
+        for index, box in enumerate(scene.boxes):
+            lo, hi = box.corners(t)
+            t1, t2 = (lo - o) * inv, (hi - o) * inv
+            tnear, tfar = np.minimum(t1, t2), np.maximum(t1, t2)
+            hit_t = tnear.max(axis=1)
+            axis = tnear.argmax(axis=1)
+            hit = (hit_t <= tfar.min(axis=1)) & (hit_t > 1e-3)
+            closer = hit & (hit_t < best_t)
+            best_t[closer] = hit_t[closer]
+            best_box[closer] = index
+            best_axis[closer] = axis[closer]
+        points = o + d * best_t[:, None]
+        channels = scene.boxes[0].texture[0].ndim == 3
+        image = np.zeros((n, 3) if channels else n, np.float32)
+        # Pixel footprint on the surface, in metres, for the mip level.
+        cos = np.abs(d[np.arange(n), best_axis]) / np.linalg.norm(d, axis=1)
+        footprint = best_t * self.ray_len / self.K[0, 0] / np.maximum(cos, 0.05)
+        for index, box in enumerate(scene.boxes):
+            sel = np.nonzero(best_box == index)[0]
+            if sel.size == 0:
+                continue
+            lo, _ = box.corners(t)
+            local = points[sel] - lo
+            axis = best_axis[sel]
+            # Face coordinates: x-faces (z, y), y-faces (x, z), z-faces (x, y).
+            u = np.where(axis == 0, local[:, 2], local[:, 0])
+            v = np.where(axis == 1, local[:, 2], local[:, 1])
+            level = np.clip(np.floor(np.log2(np.maximum(footprint[sel] * box.texels_per_m, 1.0))), 0,
+                            len(box.texture) - 1).astype(int)
+            for lv in np.unique(level):
+                m = level == lv
+                tex = box.texture[lv]
+                scale = box.texels_per_m / 2 ** lv
+                th, tw = tex.shape[:2]
+                sample = _sample(tex, np.mod(u[m] * scale, tw), np.mod(v[m] * scale, th))
+                image[sel[m]] = sample.reshape(image[sel[m]].shape)
+            shade = FACE_SHADE[axis]
+            image[sel] *= shade[:, None] if channels else shade
+        shape = (self.height, self.width)
+        image = image.reshape(shape + ((3,) if channels else ()))
+        depth = best_t.reshape(shape).astype(np.float32)
+        return image, depth, best_box.reshape(shape)

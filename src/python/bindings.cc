@@ -1,0 +1,228 @@
+// dynaorb._core: the pybind11 module over the core's public API (System,
+// Settings, DataProvider, trajectory files). Images cross as numpy arrays:
+// uint8 HxW / HxWx3, uint16 or float32 HxW depth.
+#include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include "dynaorb/io/dataset.h"
+#include "dynaorb/io/errors.h"
+#include "dynaorb/io/settings.h"
+#include "dynaorb/io/trajectory_io.h"
+#include "dynaorb/system.h"
+
+namespace py = pybind11;
+using namespace dynaorb;
+
+namespace {
+
+// Wraps a numpy array as a cv::Mat without copying; the array must outlive the Mat.
+cv::Mat as_mat(const py::object& obj, const char* what) {
+  if (obj.is_none()) return cv::Mat();
+  auto arr = py::array::ensure(obj, py::array::c_style);
+  if (!arr) throw InputError(std::string(what) + ": expected a numpy array");
+  int depth;
+  const py::dtype dt = arr.dtype();
+  if (dt.is(py::dtype::of<uint8_t>())) depth = CV_8U;
+  else if (dt.is(py::dtype::of<uint16_t>())) depth = CV_16U;
+  else if (dt.is(py::dtype::of<float>())) depth = CV_32F;
+  else if (dt.is(py::dtype::of<int32_t>())) depth = CV_32S;
+  else throw InputError(std::string(what) + ": dtype " + py::str(dt.attr("name")).cast<std::string>() + " is not supported");
+  if (arr.ndim() != 2 && arr.ndim() != 3) throw InputError(std::string(what) + ": expected a 2-D or 3-D array");
+  const int channels = arr.ndim() == 3 ? static_cast<int>(arr.shape(2)) : 1;
+  if (channels < 1 || channels > 4) throw InputError(std::string(what) + ": expected 1 to 4 channels");
+  return cv::Mat(static_cast<int>(arr.shape(0)), static_cast<int>(arr.shape(1)), CV_MAKETYPE(depth, channels),
+                 const_cast<void*>(arr.data()));
+}
+
+py::object to_numpy(const cv::Mat& m) {
+  if (m.empty()) return py::none();
+  cv::Mat c = m.isContinuous() ? m : m.clone();
+  std::vector<py::ssize_t> shape = {c.rows, c.cols};
+  if (c.channels() > 1) shape.push_back(c.channels());
+  switch (c.depth()) {
+    case CV_8U: return py::array_t<uint8_t>(shape, c.ptr<uint8_t>());
+    case CV_16U: return py::array_t<uint16_t>(shape, c.ptr<uint16_t>());
+    case CV_32F: return py::array_t<float>(shape, c.ptr<float>());
+    case CV_64F: return py::array_t<double>(shape, c.ptr<double>());
+    default: throw std::runtime_error("unsupported cv::Mat depth");
+  }
+}
+
+py::tuple trajectory_to_numpy(const Trajectory& t) {
+  py::array_t<double> stamps(static_cast<py::ssize_t>(t.size()));
+  py::array_t<double> poses({static_cast<py::ssize_t>(t.size()), py::ssize_t(4), py::ssize_t(4)});
+  auto s = stamps.mutable_unchecked<1>();
+  auto p = poses.mutable_unchecked<3>();
+  for (size_t i = 0; i < t.size(); ++i) {
+    s(i) = t[i].stamp;
+    const Eigen::Matrix4d m = t[i].pose.matrix();
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c) p(i, r, c) = m(r, c);
+  }
+  return py::make_tuple(stamps, poses);
+}
+
+Trajectory trajectory_from_numpy(py::array_t<double, py::array::c_style | py::array::forcecast> stamps,
+                                 py::array_t<double, py::array::c_style | py::array::forcecast> poses) {
+  if (stamps.ndim() != 1 || poses.ndim() != 3 || poses.shape(0) != stamps.shape(0) || poses.shape(1) != 4 ||
+      poses.shape(2) != 4)
+    throw InputError("trajectory: expected stamps (N,) and poses (N,4,4)");
+  Trajectory t(stamps.shape(0));
+  auto s = stamps.unchecked<1>();
+  auto p = poses.unchecked<3>();
+  for (size_t i = 0; i < t.size(); ++i) {
+    t[i].stamp = s(i);
+    Eigen::Matrix4d m;
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c) m(r, c) = p(i, r, c);
+    t[i].pose.matrix() = m;
+  }
+  return t;
+}
+
+py::object optional_number(const std::optional<double>& v) { return v ? py::cast(*v) : py::none(); }
+
+}  // namespace
+
+PYBIND11_MODULE(_core, m) {
+  m.doc() = "dynaorb core: visual SLAM with a dynamic-object front end";
+  static py::exception<InputError> input_error(m, "InputError", PyExc_ValueError);
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const InputError& e) {
+      PyErr_SetString(input_error.ptr(), e.what());
+    }
+  });
+
+  m.def("parse_sensor", [](const std::string& s) { return to_string(parse_sensor(s)); },
+        "Normalises a sensor name to mono|stereo|rgbd (ValueError otherwise).");
+
+  py::class_<Settings>(m, "Settings")
+      .def_static("load", &Settings::load, py::arg("path"), "Loads an ORB-SLAM2 settings YAML.")
+      .def("save", &Settings::save, py::arg("path"))
+      .def("validate", [](const Settings& s, const std::string& sensor) { s.validate(parse_sensor(sensor)); })
+      .def("summary", &Settings::summary)
+      .def_readonly("source", &Settings::source)
+      .def_property_readonly("fx", [](const Settings& s) { return s.camera.fx; })
+      .def_property_readonly("fy", [](const Settings& s) { return s.camera.fy; })
+      .def_property_readonly("cx", [](const Settings& s) { return s.camera.cx; })
+      .def_property_readonly("cy", [](const Settings& s) { return s.camera.cy; })
+      .def_property_readonly("dist", [](const Settings& s) { return to_numpy(s.camera.dist); })
+      .def_property_readonly("width", [](const Settings& s) { return s.camera.width; })
+      .def_property_readonly("height", [](const Settings& s) { return s.camera.height; })
+      .def_property_readonly("fps", [](const Settings& s) { return s.camera.fps; })
+      .def_property_readonly("rgb", [](const Settings& s) { return s.camera.rgb; })
+      .def_property_readonly("bf", [](const Settings& s) { return optional_number(s.camera.bf); })
+      .def_property_readonly("th_depth", [](const Settings& s) { return optional_number(s.camera.th_depth); })
+      .def_property_readonly("depth_map_factor",
+                             [](const Settings& s) { return optional_number(s.camera.depth_map_factor); })
+      .def_property_readonly("n_features", [](const Settings& s) { return s.extractor.n_features; })
+      .def_property_readonly("rectified_stereo", [](const Settings& s) { return s.rectification.enabled(); })
+      .def_property_readonly("rectification_R_left",
+                             [](const Settings& s) { return to_numpy(s.rectification.R_l); });
+
+  py::class_<Frame>(m, "Frame")
+      .def_readonly("index", &Frame::index)
+      .def_readonly("stamp", &Frame::stamp)
+      .def_readonly("image_path", &Frame::image_path)
+      .def_property_readonly("image", [](const Frame& f) { return to_numpy(f.image); })
+      .def_property_readonly("right", [](const Frame& f) { return to_numpy(f.right); })
+      .def_property_readonly("depth", [](const Frame& f) { return to_numpy(f.depth); });
+
+  py::class_<DataProvider>(m, "DataProvider")
+      .def_property_readonly("kind", &DataProvider::kind)
+      .def_property_readonly("root", &DataProvider::root)
+      .def_property_readonly("sensor", [](const DataProvider& d) { return to_string(d.sensor()); })
+      .def("__len__", &DataProvider::size)
+      .def("stamp", &DataProvider::stamp)
+      .def("load", &DataProvider::load, py::arg("index"), py::call_guard<py::gil_scoped_release>())
+      .def("default_settings", &DataProvider::default_settings)
+      .def("ground_truth", [](const DataProvider& d) { return trajectory_to_numpy(d.ground_truth()); },
+           "(stamps (N,), poses (N,4,4)) of the left/colour camera in the world; empty when none.")
+      .def_property_readonly("warnings", &DataProvider::warnings);
+
+  m.def("open_dataset",
+        [](const std::string& kind, const std::string& path, const std::optional<std::string>& sensor) {
+          DatasetOptions options;
+          if (sensor) options.sensor = parse_sensor(*sensor);
+          return open_dataset(kind, path, options);
+        },
+        py::arg("kind"), py::arg("path"), py::arg("sensor") = py::none());
+
+  py::class_<TrackResult>(m, "TrackResult")
+      .def_property_readonly("state", [](const TrackResult& r) { return to_string(r.state); })
+      .def_property_readonly("rejected", [](const TrackResult& r) { return to_string(r.rejected); })
+      .def_property_readonly("pose", [](const TrackResult& r) -> py::object {
+        if (!r.pose) return py::none();
+        return py::cast(Eigen::Matrix4d(r.pose->matrix()));
+      })
+      .def_readonly("message", &TrackResult::message)
+      .def_readonly("stage_ms", &TrackResult::stage_ms)
+      .def_readonly("invalid_depth_pixels", &TrackResult::invalid_depth_pixels)
+      .def_readonly("mask_used", &TrackResult::mask_used);
+
+  py::class_<System>(m, "System")
+      .def(py::init([](const Settings& s, const std::string& sensor) {
+             return std::make_unique<System>(s, parse_sensor(sensor));
+           }),
+           py::arg("settings"), py::arg("sensor"))
+      .def("track_mono",
+           [](System& s, const py::object& image, double stamp, const py::object& mask) {
+             cv::Mat i = as_mat(image, "image"), k = as_mat(mask, "mask");
+             py::gil_scoped_release release;
+             return s.track_mono(i, stamp, k);
+           },
+           py::arg("image"), py::arg("stamp"), py::arg("mask") = py::none())
+      .def("track_stereo",
+           [](System& s, const py::object& left, const py::object& right, double stamp, const py::object& mask) {
+             cv::Mat l = as_mat(left, "left"), r = as_mat(right, "right"), k = as_mat(mask, "mask");
+             py::gil_scoped_release release;
+             return s.track_stereo(l, r, stamp, k);
+           },
+           py::arg("left"), py::arg("right"), py::arg("stamp"), py::arg("mask") = py::none())
+      .def("track_rgbd",
+           [](System& s, const py::object& image, const py::object& depth, double stamp, const py::object& mask) {
+             cv::Mat i = as_mat(image, "image"), d = as_mat(depth, "depth"), k = as_mat(mask, "mask");
+             py::gil_scoped_release release;
+             return s.track_rgbd(i, d, stamp, k);
+           },
+           py::arg("image"), py::arg("depth"), py::arg("stamp"), py::arg("mask") = py::none())
+      .def("track_frame",
+           [](System& s, const Frame& f, const py::object& mask) {
+             cv::Mat k = as_mat(mask, "mask");
+             py::gil_scoped_release release;
+             switch (s.sensor()) {
+               case Sensor::kMono: return s.track_mono(f.image, f.stamp, k);
+               case Sensor::kStereo: return s.track_stereo(f.image, f.right, f.stamp, k);
+               case Sensor::kRGBD: return s.track_rgbd(f.image, f.depth, f.stamp, k);
+             }
+             throw InputError("unknown sensor");
+           },
+           py::arg("frame"), py::arg("mask") = py::none(), "Tracks a frame loaded by a DataProvider.")
+      .def_property_readonly("sensor", [](const System& s) { return to_string(s.sensor()); })
+      .def_property_readonly("settings", &System::settings)
+      .def("counters", [](const System& s) {
+        const SystemCounters& c = s.counters();
+        py::dict d;
+        d["frames"] = c.frames;
+        d["rejected"] = c.rejected;
+        d["tracked"] = c.tracked;
+        d["masks_dropped"] = c.masks_dropped;
+        d["rejected_by_reason"] = c.rejected_by_reason;
+        return d;
+      })
+      .def("trajectory", [](const System& s) { return trajectory_to_numpy(s.trajectory()); })
+      .def("reset", &System::reset);
+
+  m.def("write_tum", [](const std::string& path, py::array_t<double> stamps, py::array_t<double> poses) {
+    io::write_tum(path, trajectory_from_numpy(stamps, poses));
+  }, py::arg("path"), py::arg("stamps"), py::arg("poses"));
+  m.def("write_kitti", [](const std::string& path, py::array_t<double> stamps, py::array_t<double> poses) {
+    io::write_kitti(path, trajectory_from_numpy(stamps, poses));
+  }, py::arg("path"), py::arg("stamps"), py::arg("poses"));
+  m.def("read_tum", [](const std::string& path) { return trajectory_to_numpy(io::read_tum(path)); });
+  m.def("read_kitti", [](const std::string& path) { return trajectory_to_numpy(io::read_kitti(path)); });
+}

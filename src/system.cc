@@ -1,0 +1,219 @@
+#include "dynaorb/system.h"
+
+#include <chrono>
+#include <cmath>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "dynaorb/io/errors.h"
+
+namespace dynaorb {
+
+std::string to_string(TrackingState state) {
+  switch (state) {
+    case TrackingState::kNoImagesYet: return "NO_IMAGES_YET";
+    case TrackingState::kNotInitialized: return "NOT_INITIALIZED";
+    case TrackingState::kOk: return "OK";
+    case TrackingState::kLost: return "LOST";
+  }
+  return "UNKNOWN";
+}
+
+std::string to_string(RejectReason reason) {
+  switch (reason) {
+    case RejectReason::kNone: return "none";
+    case RejectReason::kEmptyImage: return "empty_image";
+    case RejectReason::kWrongSize: return "wrong_size";
+    case RejectReason::kWrongType: return "wrong_type";
+    case RejectReason::kStampNotIncreasing: return "stamp_not_increasing";
+  }
+  return "unknown";
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+std::string size_text(const cv::Size& s) { return std::to_string(s.width) + "x" + std::to_string(s.height); }
+
+// Grey image from an 8-bit grey / 3- or 4-channel image; false when the type is unusable.
+bool to_grey(const cv::Mat& in, bool rgb_order, cv::Mat& grey) {
+  if (in.depth() != CV_8U) return false;
+  switch (in.channels()) {
+    case 1: grey = in; return true;
+    case 3: cv::cvtColor(in, grey, rgb_order ? cv::COLOR_RGB2GRAY : cv::COLOR_BGR2GRAY); return true;
+    case 4: cv::cvtColor(in, grey, rgb_order ? cv::COLOR_RGBA2GRAY : cv::COLOR_BGRA2GRAY); return true;
+    default: return false;
+  }
+}
+
+}  // namespace
+
+struct System::Impl {
+  Settings settings;
+  Sensor sensor;
+  SystemCounters counters;
+  Trajectory trajectory;
+  TrackingState state = TrackingState::kNoImagesYet;
+  cv::Size expected_size;  // from the settings, or from the first accepted frame
+  double last_stamp = -INFINITY;
+  cv::Mat rect_map_l1, rect_map_l2, rect_map_r1, rect_map_r2;
+
+  // Per-frame working images after preprocessing.
+  cv::Mat grey, grey_right, depth_m, mask;
+
+  Impl(const Settings& s, Sensor k) : settings(s), sensor(k) {
+    settings.validate(sensor);
+    if (settings.camera.width > 0 && settings.camera.height > 0)
+      expected_size = {settings.camera.width, settings.camera.height};
+    const StereoRectification& q = settings.rectification;
+    if (sensor == Sensor::kStereo && q.enabled()) {
+      const cv::Size size(q.width, q.height);
+      cv::initUndistortRectifyMap(q.K_l, q.D_l, q.R_l, q.P_l.colRange(0, 3), size, CV_16SC2, rect_map_l1, rect_map_l2);
+      cv::initUndistortRectifyMap(q.K_r, q.D_r, q.R_r, q.P_r.colRange(0, 3), size, CV_16SC2, rect_map_r1, rect_map_r2);
+      expected_size = size;
+    }
+  }
+
+  TrackResult reject(TrackResult r, RejectReason reason, const std::string& message) {
+    r.rejected = reason;
+    r.message = message;
+    r.state = state;
+    ++counters.rejected;
+    ++counters.rejected_by_reason[to_string(reason)];
+    return r;
+  }
+
+  // Checks the stamp, size and type of the main image; converts it to grey.
+  bool accept_image(const cv::Mat& image, double stamp, TrackResult& r, const char* what) {
+    if (image.empty()) {
+      r = reject(r, RejectReason::kEmptyImage, std::string(what) + " image is empty");
+      return false;
+    }
+    if (!std::isfinite(stamp) || stamp <= last_stamp) {
+      r = reject(r, RejectReason::kStampNotIncreasing,
+                 "stamp " + std::to_string(stamp) + " does not follow " + std::to_string(last_stamp));
+      return false;
+    }
+    if (expected_size.area() > 0 && image.size() != expected_size) {
+      r = reject(r, RejectReason::kWrongSize,
+                 std::string(what) + " image is " + size_text(image.size()) + ", settings say " +
+                     size_text(expected_size));
+      return false;
+    }
+    if (!to_grey(image, settings.camera.rgb, grey)) {
+      r = reject(r, RejectReason::kWrongType, std::string(what) + " image must be 8-bit with 1, 3 or 4 channels");
+      return false;
+    }
+    return true;
+  }
+
+  void accept_mask(const cv::Mat& m, const cv::Size& size, TrackResult& r) {
+    mask.release();
+    if (m.empty()) return;
+    if (m.size() != size || m.channels() != 1 || (m.depth() != CV_8U && m.depth() != CV_16U)) {
+      ++counters.masks_dropped;
+      return;
+    }
+    m.convertTo(mask, CV_8U);  // label ids above 255 saturate: still "masked"
+    r.mask_used = true;
+  }
+
+  TrackResult finish(TrackResult r, double stamp, Clock::time_point start) {
+    r.stage_ms["preprocess"] = ms_since(start);
+    if (expected_size.area() == 0) expected_size = grey.size();
+    last_stamp = stamp;
+    // The tracking and mapping core (ORB extraction, motion model, local map,
+    // bundle adjustment) is not part of this build yet: every accepted frame
+    // leaves the system NOT_INITIALIZED and produces no pose.
+    state = TrackingState::kNotInitialized;
+    r.state = state;
+    r.message = "tracking core not available in this build";
+    if (r.state == TrackingState::kOk && r.pose) {
+      ++counters.tracked;
+      trajectory.push_back({stamp, *r.pose});
+    }
+    return r;
+  }
+};
+
+System::System(const Settings& settings, Sensor sensor) : impl_(std::make_unique<Impl>(settings, sensor)) {}
+System::~System() = default;
+
+TrackResult System::track_mono(const cv::Mat& image, double stamp, const cv::Mat& mask) {
+  Impl& s = *impl_;
+  ++s.counters.frames;
+  const auto start = Clock::now();
+  TrackResult r;
+  if (s.sensor != Sensor::kMono) throw InputError("track_mono called on a " + to_string(s.sensor) + " system");
+  if (!s.accept_image(image, stamp, r, "mono")) return r;
+  s.accept_mask(mask, image.size(), r);
+  return s.finish(r, stamp, start);
+}
+
+TrackResult System::track_stereo(const cv::Mat& left, const cv::Mat& right, double stamp, const cv::Mat& mask) {
+  Impl& s = *impl_;
+  ++s.counters.frames;
+  const auto start = Clock::now();
+  TrackResult r;
+  if (s.sensor != Sensor::kStereo) throw InputError("track_stereo called on a " + to_string(s.sensor) + " system");
+  if (right.empty()) return s.reject(r, RejectReason::kEmptyImage, "right image is empty");
+  if (!s.accept_image(left, stamp, r, "left")) return r;
+  if (right.size() != left.size())
+    return s.reject(r, RejectReason::kWrongSize,
+                    "right image is " + size_text(right.size()) + ", left is " + size_text(left.size()));
+  cv::Mat left_grey = s.grey.clone();
+  if (!to_grey(right, s.settings.camera.rgb, s.grey_right))
+    return s.reject(r, RejectReason::kWrongType, "right image must be 8-bit with 1, 3 or 4 channels");
+  if (!s.rect_map_l1.empty()) {
+    cv::remap(left_grey, s.grey, s.rect_map_l1, s.rect_map_l2, cv::INTER_LINEAR);
+    cv::Mat rectified_right;
+    cv::remap(s.grey_right, rectified_right, s.rect_map_r1, s.rect_map_r2, cv::INTER_LINEAR);
+    s.grey_right = rectified_right;
+  } else {
+    s.grey = left_grey;
+  }
+  s.accept_mask(mask, left.size(), r);
+  return s.finish(r, stamp, start);
+}
+
+TrackResult System::track_rgbd(const cv::Mat& image, const cv::Mat& depth, double stamp, const cv::Mat& mask) {
+  Impl& s = *impl_;
+  ++s.counters.frames;
+  const auto start = Clock::now();
+  TrackResult r;
+  if (s.sensor != Sensor::kRGBD) throw InputError("track_rgbd called on a " + to_string(s.sensor) + " system");
+  if (depth.empty()) return s.reject(r, RejectReason::kEmptyImage, "depth image is empty");
+  if (!s.accept_image(image, stamp, r, "colour")) return r;
+  if (depth.size() != image.size())
+    return s.reject(r, RejectReason::kWrongSize,
+                    "depth image is " + size_text(depth.size()) + ", colour is " + size_text(image.size()));
+  if (depth.channels() != 1 || (depth.depth() != CV_16U && depth.depth() != CV_32F))
+    return s.reject(r, RejectReason::kWrongType, "depth image must be 16UC1 or 32FC1");
+  const double factor = *s.settings.camera.depth_map_factor;
+  depth.convertTo(s.depth_m, CV_32F, 1.0 / factor);
+  // NaN, infinite, zero and negative depths are "no measurement": set to 0 and counted.
+  cv::Mat valid = (s.depth_m > 0.0f) & (s.depth_m < std::numeric_limits<float>::infinity());
+  r.invalid_depth_pixels = static_cast<int>(s.depth_m.total()) - cv::countNonZero(valid);
+  s.depth_m.setTo(0.0f, ~valid);
+  s.accept_mask(mask, image.size(), r);
+  return s.finish(r, stamp, start);
+}
+
+Sensor System::sensor() const { return impl_->sensor; }
+const Settings& System::settings() const { return impl_->settings; }
+const SystemCounters& System::counters() const { return impl_->counters; }
+Trajectory System::trajectory() const { return impl_->trajectory; }
+
+void System::reset() {
+  Impl& s = *impl_;
+  s.trajectory.clear();
+  s.state = TrackingState::kNoImagesYet;
+  s.last_stamp = -INFINITY;
+}
+
+}  // namespace dynaorb

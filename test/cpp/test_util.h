@@ -1,0 +1,55 @@
+#pragma once
+// Helpers for the gtests: the shared data folder and scratch folders.
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <gtest/gtest.h>
+#include <random>
+#include <string>
+
+namespace dynaorb::test {
+
+namespace fs = std::filesystem;
+
+// ../shared/data beside the repository, or $DYNAORB_SHARED/data.
+inline fs::path shared_data() {
+  if (const char* env = std::getenv("DYNAORB_SHARED")) return fs::path(env) / "data";
+  return fs::path(DYNAORB_SOURCE_DIR).parent_path() / "shared" / "data";
+}
+
+#define DYNAORB_REQUIRE_SHARED()                                                        \
+  do {                                                                                  \
+    if (!std::filesystem::is_directory(::dynaorb::test::shared_data()))                 \
+      GTEST_SKIP() << "shared data not found at " << ::dynaorb::test::shared_data();   \
+  } while (0)
+
+// A fresh folder under the system temp dir, removed when the object dies.
+class ScratchDir {
+ public:
+  ScratchDir() {
+    std::random_device rd;
+    path_ = fs::temp_directory_path() / ("dynaorb_test_" + std::to_string(rd()) + std::to_string(rd()));
+    fs::create_directories(path_);
+  }
+  ~ScratchDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  const fs::path& path() const { return path_; }
+  fs::path write(const std::string& name, const std::string& text) const {
+    fs::path p = path_ / name;
+    fs::create_directories(p.parent_path());
+    std::ofstream(p) << text;
+    return p;
+  }
+
+ private:
+  fs::path path_;
+};
+
+// Copies a directory tree (small test data only).
+inline void copy_tree(const fs::path& from, const fs::path& to) {
+  fs::copy(from, to, fs::copy_options::recursive | fs::copy_options::overwrite_existing);
+}
+
+}  // namespace dynaorb::test
