@@ -146,10 +146,10 @@ System::~System() = default;
 
 TrackResult System::track_mono(const cv::Mat& image, double stamp, const cv::Mat& mask) {
   Impl& s = *impl_;
+  if (s.sensor != Sensor::kMono) throw InputError("track_mono called on a " + to_string(s.sensor) + " system");
   ++s.counters.frames;
   const auto start = Clock::now();
   TrackResult r;
-  if (s.sensor != Sensor::kMono) throw InputError("track_mono called on a " + to_string(s.sensor) + " system");
   if (!s.accept_image(image, stamp, r, "mono")) return r;
   s.accept_mask(mask, image.size(), r);
   return s.finish(r, stamp, start);
@@ -157,10 +157,10 @@ TrackResult System::track_mono(const cv::Mat& image, double stamp, const cv::Mat
 
 TrackResult System::track_stereo(const cv::Mat& left, const cv::Mat& right, double stamp, const cv::Mat& mask) {
   Impl& s = *impl_;
+  if (s.sensor != Sensor::kStereo) throw InputError("track_stereo called on a " + to_string(s.sensor) + " system");
   ++s.counters.frames;
   const auto start = Clock::now();
   TrackResult r;
-  if (s.sensor != Sensor::kStereo) throw InputError("track_stereo called on a " + to_string(s.sensor) + " system");
   if (right.empty()) return s.reject(r, RejectReason::kEmptyImage, "right image is empty");
   if (!s.accept_image(left, stamp, r, "left")) return r;
   if (right.size() != left.size())
@@ -183,10 +183,10 @@ TrackResult System::track_stereo(const cv::Mat& left, const cv::Mat& right, doub
 
 TrackResult System::track_rgbd(const cv::Mat& image, const cv::Mat& depth, double stamp, const cv::Mat& mask) {
   Impl& s = *impl_;
+  if (s.sensor != Sensor::kRGBD) throw InputError("track_rgbd called on a " + to_string(s.sensor) + " system");
   ++s.counters.frames;
   const auto start = Clock::now();
   TrackResult r;
-  if (s.sensor != Sensor::kRGBD) throw InputError("track_rgbd called on a " + to_string(s.sensor) + " system");
   if (depth.empty()) return s.reject(r, RejectReason::kEmptyImage, "depth image is empty");
   if (!s.accept_image(image, stamp, r, "colour")) return r;
   if (depth.size() != image.size())

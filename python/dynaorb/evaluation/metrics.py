@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import copy
+import logging
 import dataclasses
 import pathlib
 
@@ -13,6 +14,8 @@ from evo.main_ape import ape
 from evo.main_rpe import rpe
 
 from dynaorb.evaluation.trajectories import TrajectoryFormatError, load_trajectory
+
+logging.getLogger("evo").setLevel(logging.WARNING)  # evo prints every result at INFO
 
 STAT_KEYS = ("rmse", "mean", "median", "std", "min", "max")
 
@@ -26,7 +29,7 @@ class EvalResult:
     ate: dict                       # metres: rmse mean median std min max
     rpe_trans: dict | None = None   # metres per delta
     rpe_rot: dict | None = None     # degrees per delta
-    rpe_percent: dict | None = None # translation error / distance, % (delta in metres)
+    rpe_percent: dict | None = None # RPE translation / delta, % (delta in metres)
     rpe_delta: float | None = None
     rpe_unit: str | None = None
     scale: float | None = None      # Sim3 scale, when aligned with sim3
@@ -89,25 +92,25 @@ def evaluate(reference, estimate, *, align: str = "se3", rpe_delta: float | None
         raise TrajectoryFormatError(f"only {ref.num_poses} poses match: too few to evaluate")
     do_align, scale = align != "none", align == "sim3"
 
-    ate = ape(ref, est, metrics.PoseRelation.translation_part, align=do_align, correct_scale=scale)
+    # evo aligns the estimate in place: every metric gets its own copy.
+    ate = ape(copy.deepcopy(ref), copy.deepcopy(est), metrics.PoseRelation.translation_part, align=do_align,
+              correct_scale=scale)
     result = EvalResult(align=align, matched_poses=ref.num_poses, reference_poses=n_ref,
                         estimate_poses=n_est, ate=_stats(ate))
     if scale:
-        aligned = copy.deepcopy(est)
-        _, _, s = aligned.align(ref, correct_scale=True)
+        _, _, s = copy.deepcopy(est).align(ref, correct_scale=True)
         result.scale = float(s)
 
     if rpe_delta is not None:
         unit = {"frames": Unit.frames, "f": Unit.frames, "m": Unit.meters}[rpe_unit]
         common = dict(delta=rpe_delta, delta_unit=unit, all_pairs=True, align=do_align, correct_scale=scale)
         try:
-            trans = rpe(ref, est, metrics.PoseRelation.translation_part, **common)
-            rot = rpe(ref, est, metrics.PoseRelation.rotation_angle_deg, **common)
+            trans = rpe(copy.deepcopy(ref), copy.deepcopy(est), metrics.PoseRelation.translation_part, **common)
+            rot = rpe(copy.deepcopy(ref), copy.deepcopy(est), metrics.PoseRelation.rotation_angle_deg, **common)
             result.rpe_trans, result.rpe_rot = _stats(trans), _stats(rot)
             result.rpe_delta, result.rpe_unit = float(rpe_delta), "m" if unit == Unit.meters else "frames"
-            if unit == Unit.meters:
-                pct = rpe(ref, est, metrics.PoseRelation.point_distance_error_ratio, **common)
-                result.rpe_percent = _stats(pct)
+            if unit == Unit.meters:  # pairs span delta metres (within evo's 10 % tolerance)
+                result.rpe_percent = {k: 100.0 * v / rpe_delta for k, v in result.rpe_trans.items()}
         except Exception as exc:  # evo raises plain exceptions when no pair spans delta
             raise TrajectoryFormatError(f"RPE with delta {rpe_delta} {rpe_unit}: {exc}") from None
 

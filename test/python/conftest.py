@@ -1,0 +1,40 @@
+"""Shared fixtures: the shared data folder and small synthetic sequences."""
+from __future__ import annotations
+
+import os
+import pathlib
+
+import pytest
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+
+
+def shared_data() -> pathlib.Path:
+    env = os.environ.get("DYNAORB_SHARED")
+    return (pathlib.Path(env) if env else REPO.parent / "shared") / "data"
+
+
+@pytest.fixture(scope="session")
+def data() -> pathlib.Path:
+    d = shared_data()
+    if not d.is_dir():
+        pytest.skip(f"shared data not found at {d}")
+    return d
+
+
+@pytest.fixture(scope="session")
+def synth_rgbd(tmp_path_factory, data) -> pathlib.Path:
+    from dynaorb.synth import SynthConfig, generate
+
+    out = tmp_path_factory.mktemp("synth_rgbd")
+    generate(out, SynthConfig(sensor="rgbd", movers=3, frames=8, seed=7, width=320, height=240, fx=262.5))
+    return out
+
+
+@pytest.fixture(scope="session")
+def synth_stereo(tmp_path_factory, data) -> pathlib.Path:
+    from dynaorb.synth import SynthConfig, generate
+
+    out = tmp_path_factory.mktemp("synth_stereo")
+    generate(out, SynthConfig(sensor="stereo", movers=2, frames=6, seed=3, width=320, height=240, fx=262.5))
+    return out

@@ -1,0 +1,64 @@
+"""The pybind11 module: providers over ../shared/data, settings and System input checks."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dynaorb import core
+
+
+@pytest.mark.parametrize("kind, rel, sensor, n, size", [
+    ("tum", "tum/rgbd_dataset_freiburg3_walking_xyz_fragment", "rgbd", 2, (480, 640)),
+    ("kitti", "kitti/sequences/06", "stereo", 51, (370, 1226)),
+    ("euroc", "euroc/V1_01_easy_micro", "stereo", 95, (480, 752)),
+    ("euroc", "euroc/MH_05_difficult_head", "mono", 250, (480, 752)),
+])
+def test_every_shared_sequence_loads(data, kind, rel, sensor, n, size):
+    provider = core().open_dataset(kind, str(data / rel))
+    assert provider.sensor == sensor
+    assert len(provider) == n
+    for i in (0, n - 1):
+        frame = provider.load(i)
+        assert frame.image.shape[:2] == size
+        if sensor == "stereo":
+            assert frame.right.shape[:2] == size
+        if sensor == "rgbd":
+            assert frame.depth.dtype == np.uint16 and frame.depth.shape == size
+    stamps, poses = provider.ground_truth()
+    assert len(stamps) > 0 and poses.shape[1:] == (4, 4)
+    assert np.allclose(poses[:, 3, :], [0, 0, 0, 1])
+    provider.default_settings().validate(sensor)
+
+
+def test_errors_are_value_errors(tmp_path):
+    with pytest.raises(ValueError, match="unknown dataset kind"):
+        core().open_dataset("vicon", str(tmp_path))
+    with pytest.raises(core().InputError, match="rgb.txt"):
+        core().open_dataset("tum", str(tmp_path))
+    with pytest.raises(ValueError, match="sensor"):
+        core().parse_sensor("lidar")
+    (tmp_path / "s.yaml").write_text("%YAML:1.0\nCamera.fx: 500\n")
+    with pytest.raises(core().InputError, match="Camera.fy"):
+        core().Settings.load(str(tmp_path / "s.yaml"))
+
+
+def test_system_counts_bad_frames(data):
+    settings = core().open_dataset("tum", str(data / "tum/rgbd_dataset_freiburg3_walking_xyz_fragment")) \
+        .default_settings()
+    system = core().System(settings, "rgbd")
+    rgb = np.zeros((480, 640, 3), np.uint8)
+    depth = np.full((480, 640), np.nan, np.float32)
+    r = system.track_rgbd(rgb, depth, 1.0)
+    assert r.rejected == "none" and r.invalid_depth_pixels == 480 * 640
+    assert system.track_rgbd(rgb, depth, 0.5).rejected == "stamp_not_increasing"
+    assert system.track_rgbd(rgb[:100], depth[:100], 2.0).rejected == "wrong_size"
+    assert system.track_rgbd(rgb, depth.astype(np.float64).astype(np.float32)[:, :, None].repeat(2, 2),
+                             3.0).rejected == "wrong_type"
+    with pytest.raises(ValueError, match="dtype"):
+        system.track_rgbd(rgb.astype(np.float64), depth, 4.0)
+    with pytest.raises(ValueError, match="track_mono"):
+        system.track_mono(rgb, 5.0)
+    counters = system.counters()
+    assert counters["frames"] == 4 and counters["rejected"] == 3
+    stamps, poses = system.trajectory()
+    assert stamps.shape == (0,) and poses.shape == (0, 4, 4)
