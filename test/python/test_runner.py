@@ -8,6 +8,7 @@ import sys
 
 import pytest
 
+from conftest import REPO
 from dynaorb.runner import RunOptions, run_dataset
 
 
@@ -69,3 +70,10 @@ def test_cli_run_and_errors(tmp_path, synth_rgbd):
     bad = subprocess.run([sys.executable, "-m", "dynaorb", "run", "tum", str(synth_rgbd), "--config", str(cfg),
                           "--quiet", "--out", str(tmp_path / "o2")], capture_output=True, text=True)
     assert bad.returncode == 2 and "Camera.bf" in bad.stderr
+
+
+def test_euroc_stereo_run_rectifies(tmp_path, data):
+    stats = run_dataset(RunOptions(kind="euroc", path=str(data / "euroc/V1_01_easy_micro"), out=str(tmp_path),
+                                   config=str(REPO / "config" / "EuRoC_stereo.yaml"), progress=False))
+    assert stats["frames"] == 95 and not stats["frames_rejected"] and not stats["frames_skipped"]
+    assert "stereo rectification: yes" in stats["settings"]
