@@ -1,6 +1,7 @@
 #include "dynaorb/system.h"
 
 #include <chrono>
+#include <limits>
 #include <cmath>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>

@@ -1,7 +1,6 @@
 #pragma once
 // Reading whitespace- or comma-separated text tables (rgb.txt, times.txt, data.csv,
 // poses) with the file and line kept for error messages.
-#include <functional>
 #include <string>
 #include <vector>
 
