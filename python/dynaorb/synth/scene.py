@@ -170,24 +170,24 @@ class Renderer:
     def render(self, scene: Scene, T_room_cam: np.ndarray, t: float):
         """(image uint8, depth float32 metres, box index int16 per pixel)."""
         R, o = T_room_cam[:3, :3], T_room_cam[:3, 3]
-        d = self.rays @ R.T
+        d = R @ self.rays.T  # (3, N): one contiguous row per axis
         d = np.where(np.abs(d) < 1e-12, 1e-12, d)
         inv = 1.0 / d
-        n = d.shape[0]
+        n = d.shape[1]
         best_t = np.full(n, np.inf)
         best_box = np.full(n, -1, np.int16)
         best_axis = np.zeros(n, np.int8)
         for index, box in enumerate(scene.boxes):
             lo, hi = box.corners(t)
-            t1, t2 = (lo - o) * inv, (hi - o) * inv
+            t1, t2 = (lo - o)[:, None] * inv, (hi - o)[:, None] * inv
             tnear, tfar = np.minimum(t1, t2), np.maximum(t1, t2)
-            hit_t = tnear.max(axis=1)
-            axis = tnear.argmax(axis=1)
-            hit = (hit_t <= tfar.min(axis=1)) & (hit_t > 1e-3)
-            closer = hit & (hit_t < best_t)
+            hit_t = np.maximum(np.maximum(tnear[0], tnear[1]), tnear[2])
+            exit_t = np.minimum(np.minimum(tfar[0], tfar[1]), tfar[2])
+            closer = np.nonzero((hit_t <= exit_t) & (hit_t > 1e-3) & (hit_t < best_t))[0]
             best_t[closer] = hit_t[closer]
             best_box[closer] = index
-            best_axis[closer] = axis[closer]
+            best_axis[closer] = np.argmax(tnear[:, closer], axis=0)  # the face the ray enters
+        d = d.T
         points = o + d * best_t[:, None]
         channels = scene.boxes[0].texture[0].ndim == 3
         image = np.zeros((n, 3) if channels else n, np.float32)
