@@ -6,7 +6,6 @@ import logging
 import dataclasses
 import pathlib
 
-import numpy as np
 from evo.core import metrics, sync
 from evo.core import trajectory as evo_traj
 from evo.core.units import Unit
