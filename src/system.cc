@@ -80,6 +80,13 @@ struct System::Impl {
     }
   }
 
+  // Refuses a call for another sensor (a programming error, not bad data), then counts the frame.
+  void begin_frame(Sensor expected, const char* call) {
+    if (sensor != expected)
+      throw InputError(std::string(call) + " called on a " + to_string(sensor) + " system");
+    ++counters.frames;
+  }
+
   TrackResult reject(TrackResult r, RejectReason reason, const std::string& message) {
     r.rejected = reason;
     r.message = message;
@@ -147,8 +154,7 @@ System::~System() = default;
 
 TrackResult System::track_mono(const cv::Mat& image, double stamp, const cv::Mat& mask) {
   Impl& s = *impl_;
-  if (s.sensor != Sensor::kMono) throw InputError("track_mono called on a " + to_string(s.sensor) + " system");
-  ++s.counters.frames;
+  s.begin_frame(Sensor::kMono, "track_mono");
   const auto start = Clock::now();
   TrackResult r;
   if (!s.accept_image(image, stamp, r, "mono")) return r;
@@ -158,8 +164,7 @@ TrackResult System::track_mono(const cv::Mat& image, double stamp, const cv::Mat
 
 TrackResult System::track_stereo(const cv::Mat& left, const cv::Mat& right, double stamp, const cv::Mat& mask) {
   Impl& s = *impl_;
-  if (s.sensor != Sensor::kStereo) throw InputError("track_stereo called on a " + to_string(s.sensor) + " system");
-  ++s.counters.frames;
+  s.begin_frame(Sensor::kStereo, "track_stereo");
   const auto start = Clock::now();
   TrackResult r;
   if (right.empty()) return s.reject(r, RejectReason::kEmptyImage, "right image is empty");
@@ -184,8 +189,7 @@ TrackResult System::track_stereo(const cv::Mat& left, const cv::Mat& right, doub
 
 TrackResult System::track_rgbd(const cv::Mat& image, const cv::Mat& depth, double stamp, const cv::Mat& mask) {
   Impl& s = *impl_;
-  if (s.sensor != Sensor::kRGBD) throw InputError("track_rgbd called on a " + to_string(s.sensor) + " system");
-  ++s.counters.frames;
+  s.begin_frame(Sensor::kRGBD, "track_rgbd");
   const auto start = Clock::now();
   TrackResult r;
   if (depth.empty()) return s.reject(r, RejectReason::kEmptyImage, "depth image is empty");

@@ -6,6 +6,7 @@ import logging
 import dataclasses
 import pathlib
 
+import numpy as np
 from evo.core import metrics, sync
 from evo.core import trajectory as evo_traj
 from evo.core.units import Unit
@@ -96,9 +97,9 @@ def evaluate(reference, estimate, *, align: str = "se3", rpe_delta: float | None
               correct_scale=scale)
     result = EvalResult(align=align, matched_poses=ref.num_poses, reference_poses=n_ref,
                         estimate_poses=n_est, ate=_stats(ate))
+    alignment = ate.np_arrays.get("alignment_transformation_sim3")  # set when aligned
     if scale:
-        _, _, s = copy.deepcopy(est).align(ref, correct_scale=True)
-        result.scale = float(s)
+        result.scale = float(np.linalg.norm(alignment[:3, 0]))  # sim3 block is s * R
 
     if rpe_delta is not None:
         unit = {"frames": Unit.frames, "f": Unit.frames, "m": Unit.meters}[rpe_unit]
@@ -116,5 +117,5 @@ def evaluate(reference, estimate, *, align: str = "se3", rpe_delta: float | None
     if plot_dir is not None:
         from dynaorb.evaluation.plots import save_plots
 
-        result.plots = save_plots(ref, est, ate, pathlib.Path(plot_dir), align=do_align, scale=scale)
+        result.plots = save_plots(ref, est, ate, pathlib.Path(plot_dir), alignment=alignment)
     return result

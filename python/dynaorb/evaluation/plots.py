@@ -11,12 +11,13 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 
-def save_plots(ref, est, ate_result, out: pathlib.Path, *, align: bool, scale: bool) -> list[str]:
-    """trajectory.png (top and side view, aligned estimate) and ate.png (error over time)."""
+def save_plots(ref, est, ate_result, out: pathlib.Path, *, alignment=None) -> list[str]:
+    """trajectory.png (top and side view, estimate under the ATE's own alignment, a 4x4
+    sim3 matrix or None) and ate.png (error over time)."""
     out.mkdir(parents=True, exist_ok=True)
     est = copy.deepcopy(est)
-    if align:
-        est.align(ref, correct_scale=scale)
+    if alignment is not None:
+        est.transform(alignment)
     a, b = ref.positions_xyz, est.positions_xyz
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
     for ax, (i, j, name) in zip(axes, [(0, 1, "x-y"), (0, 2, "x-z")]):

@@ -15,7 +15,6 @@ import pathlib
 import statistics
 import time
 
-
 from dynaorb import core
 from dynaorb.runner.masks import MaskFolder
 
