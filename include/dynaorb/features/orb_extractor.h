@@ -1,0 +1,44 @@
+#pragma once
+// ORB features as ORB-SLAM describes them: a scale pyramid, FAST per grid
+// cell with the iniThFAST/minThFAST fallback, a quadtree that spreads the
+// keypoints of each level over the image, orientation by intensity centroid
+// and rotated BRIEF (OpenCV's learned 256-bit pattern, so descriptors are
+// compatible with ORB-SLAM2 vocabularies).
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "dynaorb/io/settings.h"
+
+namespace dynaorb::features {
+
+class OrbExtractor {
+ public:
+  explicit OrbExtractor(const ExtractorSettings& settings);
+
+  // image: CV_8UC1. exclude: empty or CV_8UC1 of the image size; keypoints at
+  // non-zero pixels are dropped before the quadtree distribution, so the
+  // feature budget goes to the rest of the image. Keypoints come in level-0
+  // pixel coordinates with octave = pyramid level, angle in degrees, size =
+  // patch diameter at that level. descriptors: N x 32 CV_8U.
+  void extract(const cv::Mat& image, const cv::Mat& exclude, std::vector<cv::KeyPoint>& keypoints,
+               cv::Mat& descriptors);
+
+  // The pyramid of the last extracted image (level 0 = the image itself).
+  const std::vector<cv::Mat>& pyramid() const { return pyramid_; }
+
+  int n_levels() const { return static_cast<int>(scale_.size()); }
+  double scale_factor() const { return settings_.scale_factor; }
+  const std::vector<float>& scale_factors() const { return scale_; }         // s^level
+  const std::vector<float>& inv_scale_factors() const { return inv_scale_; }
+  const std::vector<float>& level_sigma2() const { return sigma2_; }         // (s^level)^2
+  const std::vector<float>& inv_level_sigma2() const { return inv_sigma2_; }
+
+ private:
+  ExtractorSettings settings_;
+  std::vector<float> scale_, inv_scale_, sigma2_, inv_sigma2_;
+  std::vector<int> features_per_level_;
+  std::vector<int> umax_;  // circular patch bounds for the intensity centroid
+  std::vector<cv::Mat> pyramid_;
+};
+
+}  // namespace dynaorb::features

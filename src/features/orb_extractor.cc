@@ -1,0 +1,269 @@
+// ORB extraction as described in ORB-SLAM (Mur-Artal, Montiel, Tardos, T-RO 2015,
+// Sec. III-A) and ORB-SLAM2 (Mur-Artal, Tardos, T-RO 2017), on top of ORB
+// (Rublee et al., ICCV 2011):
+//  1. a scale pyramid, level i = level 0 scaled by 1/s^i;
+//  2. per level, FAST corners over a grid of ~30x30 px cells, with a lower
+//     threshold where a cell found nothing (so low-texture areas still count);
+//  3. corners on the exclusion mask are dropped, then a quadtree keeps the
+//     level's share of the budget spread over the image;
+//  4. orientation by the intensity centroid of a circular patch (r = 15);
+//  5. rotated BRIEF on the Gaussian-blurred level with OpenCV's learned pattern.
+#include "dynaorb/features/orb_extractor.h"
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
+#include <stdexcept>
+#include <string>
+
+#include "orb_pattern.h"
+#include "quadtree.h"
+
+namespace dynaorb::features {
+
+namespace {
+
+constexpr int kPatchSize = 31;
+constexpr int kHalfPatchSize = 15;
+constexpr int kEdgeThreshold = 19;  // keypoints stay this far from the level's border
+constexpr int kFastMargin = 3;      // FAST's circle radius
+constexpr int kCellSize = 30;
+constexpr int kDescriptorBytes = 32;
+
+// Per-thread buffers reused across calls (left and right images are often
+// extracted on two threads with two extractors).
+struct Scratch {
+  std::vector<std::vector<cv::KeyPoint>> level_kps;  // kept keypoints, level pixels
+  std::vector<cv::KeyPoint> candidates, cell_kps;
+  std::vector<unsigned char> cell_found;
+  std::vector<int> keep;
+  detail::QuadtreeScratch quadtree;
+  cv::Mat blurred;
+};
+thread_local Scratch t_scratch;
+
+// Intensity centroid orientation (Rosin; ORB Sec. 3.2): m10, m01 over the disc
+// of radius 15 around the keypoint, rows bounded by umax; angle of (m10, m01).
+float ic_angle(const cv::Mat& img, int x, int y, const std::vector<int>& umax) {
+  const uchar* center = img.ptr<uchar>(y) + x;
+  const int step = static_cast<int>(img.step1());
+  int m01 = 0, m10 = 0;
+  for (int u = -kHalfPatchSize; u <= kHalfPatchSize; ++u) m10 += u * center[u];
+  for (int v = 1; v <= kHalfPatchSize; ++v) {
+    // Rows +v and -v together.
+    int v_sum = 0;
+    const int d = umax[v];
+    const uchar* up = center + v * step;
+    const uchar* down = center - v * step;
+    for (int u = -d; u <= d; ++u) {
+      const int p = up[u], m = down[u];
+      v_sum += p - m;
+      m10 += u * (p + m);
+    }
+    m01 += v * v_sum;
+  }
+  float a = cv::fastAtan2(static_cast<float>(m01), static_cast<float>(m10));
+  if (a >= 360.f) a -= 360.f;
+  return a;
+}
+
+// Steered BRIEF: each of the 256 point pairs is rotated by the keypoint angle
+// and the blurred intensities compared (bit = I(p1) < I(p2)). The arithmetic
+// follows OpenCV's ORB so that the bits are identical.
+void describe(const cv::Mat& blurred, int x, int y, float angle_deg, uchar* desc) {
+  const float angle = angle_deg * static_cast<float>(CV_PI / 180.f);
+  const float a = static_cast<float>(std::cos(angle)), b = static_cast<float>(std::sin(angle));
+  const uchar* center = blurred.ptr<uchar>(y) + x;
+  const int step = static_cast<int>(blurred.step1());
+  const signed char* p = detail::kOrbBitPattern31;
+  auto sample = [&](int px, int py) {
+    const float fx = px * a - py * b, fy = px * b + py * a;
+    return center[cvRound(fy) * step + cvRound(fx)];
+  };
+  for (int i = 0; i < kDescriptorBytes; ++i) {
+    int val = 0;
+    for (int bit = 0; bit < 8; ++bit, p += 4)
+      val |= (sample(p[0], p[1]) < sample(p[2], p[3])) << bit;
+    desc[i] = static_cast<uchar>(val);
+  }
+}
+
+}  // namespace
+
+OrbExtractor::OrbExtractor(const ExtractorSettings& settings) : settings_(settings) {
+  const ExtractorSettings& s = settings_;
+  if (s.n_features < 1) throw std::invalid_argument("OrbExtractor: n_features must be >= 1");
+  if (s.n_levels < 1) throw std::invalid_argument("OrbExtractor: n_levels must be >= 1");
+  if (!(s.scale_factor > 1.0))
+    throw std::invalid_argument("OrbExtractor: scale_factor must be > 1, got " +
+                                std::to_string(s.scale_factor));
+  if (s.ini_th_fast < 1 || s.min_th_fast < 1)
+    throw std::invalid_argument("OrbExtractor: FAST thresholds must be >= 1");
+
+  const int L = s.n_levels;
+  scale_.resize(L);
+  inv_scale_.resize(L);
+  sigma2_.resize(L);
+  inv_sigma2_.resize(L);
+  for (int i = 0; i < L; ++i) {
+    const double sc = std::pow(s.scale_factor, i);
+    scale_[i] = static_cast<float>(sc);
+    inv_scale_[i] = static_cast<float>(1.0 / sc);
+    sigma2_[i] = static_cast<float>(sc * sc);
+    inv_sigma2_[i] = static_cast<float>(1.0 / (sc * sc));
+  }
+
+  // Budget per level: a geometric series with ratio 1/s (the area of a level
+  // shrinks with s^2, ORB-SLAM2 uses 1/s), summing to n_features; the last
+  // level gets the remainder.
+  features_per_level_.resize(L);
+  const double f = 1.0 / s.scale_factor;
+  double per_level = s.n_features * (1 - f) / (1 - std::pow(f, L));
+  int sum = 0;
+  for (int i = 0; i < L - 1; ++i) {
+    features_per_level_[i] = cvRound(per_level);
+    sum += features_per_level_[i];
+    per_level *= f;
+  }
+  features_per_level_[L - 1] = std::max(s.n_features - sum, 0);
+
+  // umax[v]: half width of the circular patch at row v, made symmetric under
+  // transposition so that the disc is the same in x and y.
+  umax_.resize(kHalfPatchSize + 1);
+  const int vmax = cvFloor(kHalfPatchSize * std::sqrt(2.f) / 2 + 1);
+  const int vmin = cvCeil(kHalfPatchSize * std::sqrt(2.f) / 2);
+  const double hp2 = kHalfPatchSize * kHalfPatchSize;
+  for (int v = 0; v <= vmax; ++v) umax_[v] = cvRound(std::sqrt(hp2 - v * v));
+  for (int v = kHalfPatchSize, v0 = 0; v >= vmin; --v) {
+    while (umax_[v0] == umax_[v0 + 1]) ++v0;
+    umax_[v] = v0;
+    ++v0;
+  }
+}
+
+void OrbExtractor::extract(const cv::Mat& image, const cv::Mat& exclude,
+                           std::vector<cv::KeyPoint>& keypoints, cv::Mat& descriptors) {
+  if (image.empty()) throw std::invalid_argument("OrbExtractor::extract: image is empty");
+  if (image.type() != CV_8UC1)
+    throw std::invalid_argument("OrbExtractor::extract: image must be CV_8UC1 (grayscale), got "
+                                "type " + std::to_string(image.type()));
+  if (!exclude.empty() && (exclude.type() != CV_8UC1 || exclude.size() != image.size()))
+    throw std::invalid_argument("OrbExtractor::extract: exclude mask must be empty or CV_8UC1 "
+                                "of the image size");
+
+  // 1. Pyramid. Each level is resized from the previous one (bilinear), as
+  // ORB-SLAM2 does, to the size of level 0 divided by s^i. Fresh buffers every
+  // call: pyramids handed out earlier stay valid.
+  const int L = n_levels();
+  pyramid_.assign(L, cv::Mat());
+  pyramid_[0] = image.clone();
+  for (int i = 1; i < L; ++i) {
+    const cv::Size sz(cvRound(image.cols * inv_scale_[i]), cvRound(image.rows * inv_scale_[i]));
+    if (sz.width < 1 || sz.height < 1) {
+      pyramid_[i] = cv::Mat(std::max(sz.height, 1), std::max(sz.width, 1), CV_8UC1, cv::Scalar(0));
+      continue;
+    }
+    cv::resize(pyramid_[i - 1], pyramid_[i], sz, 0, 0, cv::INTER_LINEAR);
+  }
+
+  Scratch& s = t_scratch;
+  s.level_kps.resize(L);
+  int total = 0;
+  for (int level = 0; level < L; ++level) {
+    std::vector<cv::KeyPoint>& out = s.level_kps[level];
+    out.clear();
+    const cv::Mat& img = pyramid_[level];
+    // FAST runs on [b, max - b), b = EDGE_THRESHOLD - 3, so corners lie at least
+    // EDGE_THRESHOLD px inside the level (room for the 31x31 rotated patch).
+    const int b = kEdgeThreshold - kFastMargin;
+    const int max_x = img.cols - b, max_y = img.rows - b;
+    const int det_w = max_x - b - 2 * kFastMargin, det_h = max_y - b - 2 * kFastMargin;
+    if (det_w < 1 || det_h < 1 || features_per_level_[level] == 0) continue;
+
+    // 2. FAST with the initial threshold over the whole detection area, then
+    // binned in ~30x30 cells; cells with no corner are searched again with the
+    // minimum threshold (ORB-SLAM's per-cell iniThFAST/minThFAST rule).
+    std::vector<cv::KeyPoint>& cand = s.candidates;
+    cand.clear();
+    cv::FAST(img(cv::Rect(b, b, max_x - b, max_y - b)), cand, settings_.ini_th_fast, true);
+    const int n_cols = std::max(1, det_w / kCellSize), n_rows = std::max(1, det_h / kCellSize);
+    const int cell_w = (det_w + n_cols - 1) / n_cols, cell_h = (det_h + n_rows - 1) / n_rows;
+    const int x0 = b + kFastMargin, y0 = b + kFastMargin;  // first detectable pixel
+    s.cell_found.assign(static_cast<size_t>(n_cols) * n_rows, 0);
+    for (cv::KeyPoint& k : cand) {
+      k.pt.x += b;
+      k.pt.y += b;
+      const int cx = std::min(n_cols - 1, (cvRound(k.pt.x) - x0) / cell_w);
+      const int cy = std::min(n_rows - 1, (cvRound(k.pt.y) - y0) / cell_h);
+      s.cell_found[cy * n_cols + cx] = 1;
+    }
+    for (int cy = 0; cy < n_rows; ++cy) {
+      for (int cx = 0; cx < n_cols; ++cx) {
+        if (s.cell_found[cy * n_cols + cx]) continue;
+        // Cell [xa, xe) x [ya, ye) of detectable pixels, plus FAST's margin.
+        const int xa = x0 + cx * cell_w, xe = std::min(xa + cell_w, max_x - kFastMargin);
+        const int ya = y0 + cy * cell_h, ye = std::min(ya + cell_h, max_y - kFastMargin);
+        if (xe <= xa || ye <= ya) continue;
+        const cv::Rect r(xa - kFastMargin, ya - kFastMargin, xe - xa + 2 * kFastMargin,
+                         ye - ya + 2 * kFastMargin);
+        s.cell_kps.clear();
+        cv::FAST(img(r), s.cell_kps, settings_.min_th_fast, true);
+        for (cv::KeyPoint& k : s.cell_kps) {
+          k.pt.x += r.x;
+          k.pt.y += r.y;
+          cand.push_back(k);
+        }
+      }
+    }
+
+    // 3a. Drop the corners whose level-0 position is excluded.
+    const float sc = scale_[level];
+    if (!exclude.empty()) {
+      auto excluded = [&](const cv::KeyPoint& k) {
+        const int u = std::clamp(cvRound(k.pt.x * sc), 0, exclude.cols - 1);
+        const int v = std::clamp(cvRound(k.pt.y * sc), 0, exclude.rows - 1);
+        return exclude.at<uchar>(v, u) != 0;
+      };
+      cand.erase(std::remove_if(cand.begin(), cand.end(), excluded), cand.end());
+    }
+
+    // 3b. Quadtree distribution over the FAST area.
+    detail::distribute_quadtree(cand, static_cast<float>(b), static_cast<float>(max_x),
+                                static_cast<float>(b), static_cast<float>(max_y),
+                                features_per_level_[level], s.quadtree, s.keep);
+
+    // 4. Orientation on the (unblurred) level image.
+    const float size = kPatchSize * sc;
+    out.reserve(s.keep.size());
+    for (int idx : s.keep) {
+      cv::KeyPoint k = cand[idx];
+      k.octave = level;
+      k.size = size;
+      k.angle = ic_angle(img, cvRound(k.pt.x), cvRound(k.pt.y), umax_);
+      out.push_back(k);
+    }
+    total += static_cast<int>(out.size());
+  }
+
+  // 5. Descriptors on the level blurred by a 7x7 Gaussian (sigma 2), then the
+  // keypoints go to level-0 coordinates.
+  keypoints.clear();
+  keypoints.reserve(total);
+  descriptors = cv::Mat(total, kDescriptorBytes, CV_8U);
+  int row = 0;
+  for (int level = 0; level < L; ++level) {
+    const std::vector<cv::KeyPoint>& kps = s.level_kps[level];
+    if (kps.empty()) continue;
+    cv::GaussianBlur(pyramid_[level], s.blurred, cv::Size(7, 7), 2, 2, cv::BORDER_REFLECT_101);
+    const float sc = scale_[level];
+    for (const cv::KeyPoint& k : kps) {
+      describe(s.blurred, cvRound(k.pt.x), cvRound(k.pt.y), k.angle, descriptors.ptr<uchar>(row++));
+      cv::KeyPoint k0 = k;
+      k0.pt *= sc;
+      keypoints.push_back(k0);
+    }
+  }
+}
+
+}  // namespace dynaorb::features
