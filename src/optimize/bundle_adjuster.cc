@@ -1,0 +1,225 @@
+// Local bundle adjustment, following ORB-SLAM2's LocalBundleAdjustment (Mur-Artal & Tardos,
+// T-RO 2017, Sec. VI-D): keyframe poses (some fixed, the gauge) and points are refined jointly
+// on their reprojection errors (2-D mono, 3-D stereo, information inv_sigma2 * I):
+//   1. iterations_first LM iterations with a Huber kernel (delta^2 = the chi2 threshold);
+//   2. unless aborted, the observations with chi2 > threshold or whose point lies at depth <= 0
+//      are excluded and iterations_second iterations are run on the rest WITHOUT the kernel;
+//   3. the outlier flags are recomputed on the final estimate (chi2 > threshold or depth <= 0).
+// An abort flag (tracking wants a new keyframe) is polled by an IterationCallback at the end of
+// every LM iteration and between the passes; on abort the latest accepted iterate is returned
+// (update_state_every_iteration) with flags computed on it. A point whose observations are all
+// excluded is simply not in the second problem and keeps its value.
+//
+// Reported costs: initial_cost / final_cost are both 1/2 * sum of Huber(chi2) over ALL valid
+// observations (Ceres' convention, the objective of pass 1) at the input and at the returned
+// estimate, so they are comparable even though pass 2 drops the outliers and the kernel.
+//
+// Structure: one 7-double block per keyframe (PoseManifold, analytic Jacobians, see
+// reprojection_cost.h), one 3-double block per point; the points are eliminated first (Schur).
+// The reduced camera system has 6 * (free keyframes) unknowns: for a local window (tens of
+// keyframes) DENSE_SCHUR is the fastest; above kDenseSchurMaxKeyframes free keyframes a
+// sparse Schur solver is used when Ceres was built with SuiteSparse or Eigen sparse support.
+#include "dynaorb/optimize/bundle_adjuster.h"
+
+#include <ceres/ceres.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <memory>
+
+#include "reprojection_cost.h"
+
+namespace dynaorb::optimize {
+
+namespace {
+
+constexpr int kDenseSchurMaxKeyframes = 60;
+
+using PoseBlock = std::array<double, 7>;
+
+class AbortCallback final : public ceres::IterationCallback {
+ public:
+  explicit AbortCallback(const std::atomic<bool>* abort) : abort_(abort) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& /*summary*/) override {
+    if (abort_ && abort_->load(std::memory_order_relaxed)) {
+      fired_ = true;
+      return ceres::SOLVER_ABORT;
+    }
+    return ceres::SOLVER_CONTINUE;
+  }
+  bool fired() const { return fired_; }
+
+ private:
+  const std::atomic<bool>* abort_;
+  bool fired_ = false;
+};
+
+bool abort_requested(const std::atomic<bool>* abort) {
+  return abort && abort->load(std::memory_order_relaxed);
+}
+
+// Ceres' rho for HuberLoss(a) with a^2 = delta2, applied to s = chi2.
+double huber(double s, double delta2) {
+  return s <= delta2 ? s : 2.0 * std::sqrt(delta2 * s) - delta2;
+}
+
+ceres::LinearSolverType choose_linear_solver(int free_keyframes,
+                                             ceres::SparseLinearAlgebraLibraryType* sparse_lib) {
+  if (free_keyframes <= kDenseSchurMaxKeyframes) return ceres::DENSE_SCHUR;
+  for (auto lib : {ceres::SUITE_SPARSE, ceres::EIGEN_SPARSE, ceres::CX_SPARSE}) {
+    if (ceres::IsSparseLinearAlgebraLibraryTypeAvailable(lib)) {
+      *sparse_lib = lib;
+      return ceres::SPARSE_SCHUR;
+    }
+  }
+  return ceres::DENSE_SCHUR;
+}
+
+// Everything one call works on: the data, the parameter blocks (poses as 7-vectors, points in
+// result.points) and the per-observation cost functions shared by both passes.
+struct Workspace {
+  const BaProblem& in;
+  const BaOptions& options;
+  std::vector<PoseBlock> poses;
+  std::vector<Eigen::Vector3d>& points;
+  std::vector<bool> valid;  // indices in range
+  std::vector<std::unique_ptr<ceres::CostFunction>> costs;
+  ceres::HuberLoss huber_mono, huber_stereo;
+  detail::PoseManifold manifold;
+
+  Workspace(const BaProblem& p, const BaOptions& o, std::vector<Eigen::Vector3d>& pts)
+      : in(p), options(o), points(pts), huber_mono(std::sqrt(o.chi2_mono)),
+        huber_stereo(std::sqrt(o.chi2_stereo)) {
+    poses.resize(p.keyframes.size());
+    for (size_t k = 0; k < poses.size(); ++k)
+      detail::pose_to_params(p.keyframes[k].T_cw, poses[k].data());
+    const int nk = static_cast<int>(p.keyframes.size()), np = static_cast<int>(p.points.size());
+    valid.resize(p.observations.size());
+    for (size_t i = 0; i < valid.size(); ++i) {
+      const BaObservation& ob = p.observations[i];
+      valid[i] = ob.keyframe >= 0 && ob.keyframe < nk && ob.point >= 0 && ob.point < np;
+    }
+  }
+
+  void build_costs() {
+    costs.resize(in.observations.size());
+    for (size_t i = 0; i < costs.size(); ++i) {
+      if (!valid[i]) continue;
+      const Observation& obs = in.observations[i].obs;
+      if (obs.stereo())
+        costs[i] = std::make_unique<detail::BaCost<3>>(in.K, obs);
+      else
+        costs[i] = std::make_unique<detail::BaCost<2>>(in.K, obs);
+    }
+  }
+
+  // Outlier flags (chi2 > threshold or depth <= 0; invalid observations are outliers) at the
+  // current estimate; returns the robust cost 1/2 * sum Huber(chi2) over the valid ones.
+  double classify(std::vector<bool>* outlier) const {
+    outlier->assign(in.observations.size(), true);
+    double cost = 0;
+    for (size_t i = 0; i < in.observations.size(); ++i) {
+      if (!valid[i]) continue;
+      const BaObservation& o = in.observations[i];
+      const Eigen::Vector3d Xc = detail::transform_point(poses[o.keyframe].data(), points[o.point]);
+      const double chi2 = detail::observation_chi2(in.K, o.obs, Xc);
+      const double threshold = o.obs.stereo() ? options.chi2_stereo : options.chi2_mono;
+      (*outlier)[i] = !(chi2 <= threshold) || Xc.z() <= 0;  // NaN-safe
+      cost += 0.5 * huber(chi2, threshold);
+    }
+    return cost;
+  }
+
+  // One LM pass over the observations with include[i]; returns true if the abort flag stopped it.
+  bool solve(const std::vector<bool>& include, bool robust, int iterations,
+             const std::atomic<bool>* abort) {
+    ceres::Problem::Options po;
+    po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+    po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+    po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+    ceres::Problem problem(po);
+    auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+    std::vector<char> pose_used(poses.size(), 0), point_used(points.size(), 0);
+    int free_keyframes = 0;
+    for (size_t i = 0; i < include.size(); ++i) {
+      if (!include[i]) continue;
+      const BaObservation& o = in.observations[i];
+      double* pose = poses[o.keyframe].data();
+      double* point = points[o.point].data();
+      if (!pose_used[o.keyframe]) {
+        pose_used[o.keyframe] = 1;
+        problem.AddParameterBlock(pose, 7, &manifold);
+        if (in.keyframes[o.keyframe].fixed)
+          problem.SetParameterBlockConstant(pose);
+        else
+          ++free_keyframes;
+        ordering->AddElementToGroup(pose, 1);
+      }
+      if (!point_used[o.point]) {
+        point_used[o.point] = 1;
+        problem.AddParameterBlock(point, 3);
+        ordering->AddElementToGroup(point, 0);  // eliminated first
+      }
+      ceres::LossFunction* loss = nullptr;
+      if (robust) loss = o.obs.stereo() ? &huber_stereo : &huber_mono;
+      problem.AddResidualBlock(costs[i].get(), loss, pose, point);
+    }
+    if (problem.NumResidualBlocks() == 0 || iterations <= 0) return false;
+
+    AbortCallback callback(abort);
+    ceres::Solver::Options so;
+    so.sparse_linear_algebra_library_type = ceres::SUITE_SPARSE;
+    so.linear_solver_type =
+        choose_linear_solver(free_keyframes, &so.sparse_linear_algebra_library_type);
+    so.linear_solver_ordering = ordering;
+    so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+    so.max_num_iterations = iterations;
+    so.num_threads = std::max(1, options.num_threads);
+    so.minimizer_progress_to_stdout = false;
+    so.logging_type = ceres::SILENT;
+    so.update_state_every_iteration = true;  // an aborted solve leaves the latest iterate
+    so.callbacks.push_back(&callback);
+    ceres::Solver::Summary summary;
+    ceres::Solve(so, &problem, &summary);
+    return callback.fired();
+  }
+};
+
+}  // namespace
+
+BaResult bundle_adjust(const BaProblem& problem, const BaOptions& options,
+                       const std::atomic<bool>* abort) {
+  BaResult result;
+  result.points = problem.points;
+  Workspace ws(problem, options, result.points);
+
+  result.initial_cost = ws.classify(&result.outlier);
+  result.final_cost = result.initial_cost;
+  result.aborted = abort_requested(abort);
+  if (!result.aborted) {
+    ws.build_costs();
+    // Pass 1: all (valid) observations, Huber.
+    result.aborted = ws.solve(ws.valid, /*robust=*/true, options.iterations_first, abort);
+    if (!result.aborted) result.aborted = abort_requested(abort);
+    if (!result.aborted) {
+      // Pass 2: inliers of pass 1 only, plain least squares.
+      std::vector<bool> outlier;
+      ws.classify(&outlier);
+      std::vector<bool> include(outlier.size());
+      for (size_t i = 0; i < include.size(); ++i) include[i] = ws.valid[i] && !outlier[i];
+      result.aborted = ws.solve(include, /*robust=*/false, options.iterations_second, abort);
+    }
+    result.final_cost = ws.classify(&result.outlier);
+  }
+
+  result.T_cw.resize(problem.keyframes.size());
+  for (size_t k = 0; k < problem.keyframes.size(); ++k) {
+    // Fixed keyframes are returned bit-identical (no quaternion round trip).
+    result.T_cw[k] = problem.keyframes[k].fixed ? problem.keyframes[k].T_cw
+                                                : detail::params_to_pose(ws.poses[k].data());
+  }
+  return result;
+}
+
+}  // namespace dynaorb::optimize

@@ -1,0 +1,263 @@
+#pragma once
+// Private to src/optimize: the pose parameterisation and the reprojection residuals shared by the
+// motion-only optimiser (pose_optimizer.cc) and local bundle adjustment (bundle_adjuster.cc).
+//
+// Pose parameterisation. A pose T_cw is one 7-double parameter block [qx qy qz qw tx ty tz]
+// (Eigen quaternion order) with the 6-DoF manifold PoseManifold below, whose update is a left
+// perturbation
+//     R <- Exp(w) * R,   t <- Exp(w) * t + v,   delta = [w, v]
+// i.e. X_c <- Exp(w) * X_c + v for every point. Why this and not EigenQuaternionManifold +
+// a separate translation block:
+//  - the residual Jacobians w.r.t. [w, v] are closed-form and cheap (-[X_c]x and I composed with
+//    the projection Jacobian), they only need the camera-frame point already computed for the
+//    residual, and the left perturbation keeps them well conditioned whatever R is;
+//  - with a quaternion block, Ceres needs the 2x4 Jacobian w.r.t. the quaternion coefficients
+//    and multiplies it by the 4x3 PlusJacobian for every residual, every iteration: more flops
+//    and a second parameter block per pose (larger Schur structure in BA).
+// Any smooth retraction with exact Jacobians gives the same LM steps to first order, so the
+// iteration counts are alike; what differs is the cost of an iteration, lowest with this one.
+// The cost functions therefore write the tangent-space (6-column) Jacobian into the first six
+// columns of the 7-column "ambient" Jacobian (last column zero) and PoseManifold reports
+// PlusJacobian = [I6; 0]. Ceres only ever uses the product J_ambient * PlusJacobian, which is
+// then exactly the tangent Jacobian. (The same "lifted Jacobian" convention is common in
+// visual-inertial solvers; it is correct for Ceres' trust-region minimiser, but a numeric
+// GradientChecker on the ambient Jacobian would not agree with it.)
+//
+// Residuals (information = inv_sigma2 * I, as in ORB-SLAM2):
+//   mono:   r = s * ([u v] - [fx x/z + cx, fy y/z + cy]),                 s = sqrt(inv_sigma2)
+//   stereo: r = s * ([u v ur] - [.., .., fx x/z + cx - bf/z])
+// so chi2 = |r|^2 = e^T * inv_sigma2 * e. A point at depth z < kMinDepth (behind or on the camera
+// plane) is projected as if at kMinDepth: the residual is large but finite and continuous, and
+// the optimisers classify z <= 0 as outlier separately.
+#include <ceres/ceres.h>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cmath>
+
+#include "dynaorb/optimize/types.h"
+
+namespace dynaorb::optimize::detail {
+
+constexpr double kMinDepth = 1e-6;
+
+// ---------------------------------------------------------------- pose block <-> Isometry3d
+inline void pose_to_params(const Eigen::Isometry3d& T, double* p) {
+  Eigen::Quaterniond q(T.rotation());
+  q.normalize();
+  p[0] = q.x();
+  p[1] = q.y();
+  p[2] = q.z();
+  p[3] = q.w();
+  p[4] = T.translation().x();
+  p[5] = T.translation().y();
+  p[6] = T.translation().z();
+}
+
+inline Eigen::Isometry3d params_to_pose(const double* p) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::Quaterniond(p[3], p[0], p[1], p[2]).normalized().toRotationMatrix();
+  T.translation() = Eigen::Vector3d(p[4], p[5], p[6]);
+  return T;
+}
+
+// Exp / Log on SO(3) via unit quaternions (small-angle safe).
+inline Eigen::Quaterniond so3_exp(const Eigen::Vector3d& w) {
+  const double theta = w.norm();
+  if (theta < 1e-10)
+    return Eigen::Quaterniond(1, 0.5 * w.x(), 0.5 * w.y(), 0.5 * w.z()).normalized();
+  const Eigen::Vector3d a = std::sin(0.5 * theta) / theta * w;
+  return Eigen::Quaterniond(std::cos(0.5 * theta), a.x(), a.y(), a.z());
+}
+
+inline Eigen::Vector3d so3_log(Eigen::Quaterniond q) {
+  if (q.w() < 0) q.coeffs() = -q.coeffs();  // shortest rotation
+  const double sn = q.vec().norm();
+  if (sn < 1e-10) return 2.0 * q.vec() / q.w();
+  return 2.0 * std::atan2(sn, q.w()) / sn * q.vec();
+}
+
+// ---------------------------------------------------------------- manifold
+class PoseManifold final : public ceres::Manifold {
+ public:
+  int AmbientSize() const override { return 7; }
+  int TangentSize() const override { return 6; }
+
+  bool Plus(const double* x, const double* delta, double* x_plus_delta) const override {
+    const Eigen::Quaterniond dq = so3_exp(Eigen::Vector3d(delta[0], delta[1], delta[2]));
+    Eigen::Map<const Eigen::Quaterniond> q(x);
+    Eigen::Map<const Eigen::Vector3d> t(x + 4);
+    Eigen::Map<Eigen::Quaterniond> q_out(x_plus_delta);
+    Eigen::Map<Eigen::Vector3d> t_out(x_plus_delta + 4);
+    q_out = (dq * q).normalized();
+    t_out = dq * t + Eigen::Vector3d(delta[3], delta[4], delta[5]);
+    return true;
+  }
+
+  // Lifted convention (see the file comment): [I6; 0], row-major 7x6.
+  bool PlusJacobian(const double* /*x*/, double* jacobian) const override {
+    Eigen::Map<Eigen::Matrix<double, 7, 6, Eigen::RowMajor>> J(jacobian);
+    J.setZero();
+    J.topRows<6>().setIdentity();
+    return true;
+  }
+
+  bool RightMultiplyByPlusJacobian(const double* /*x*/, const int num_rows, const double* ambient,
+                                   double* tangent) const override {
+    for (int r = 0; r < num_rows; ++r)
+      for (int c = 0; c < 6; ++c) tangent[r * 6 + c] = ambient[r * 7 + c];
+    return true;
+  }
+
+  bool Minus(const double* y, const double* x, double* y_minus_x) const override {
+    Eigen::Map<const Eigen::Quaterniond> qy(y), qx(x);
+    Eigen::Map<const Eigen::Vector3d> ty(y + 4), tx(x + 4);
+    const Eigen::Quaterniond dq = (qy * qx.conjugate()).normalized();
+    const Eigen::Vector3d w = so3_log(dq);
+    const Eigen::Vector3d v = ty - dq * tx;
+    for (int i = 0; i < 3; ++i) {
+      y_minus_x[i] = w[i];
+      y_minus_x[3 + i] = v[i];
+    }
+    return true;
+  }
+
+  bool MinusJacobian(const double* /*x*/, double* jacobian) const override {
+    Eigen::Map<Eigen::Matrix<double, 6, 7, Eigen::RowMajor>> J(jacobian);
+    J.setZero();
+    J.leftCols<6>().setIdentity();
+    return true;
+  }
+};
+
+// ---------------------------------------------------------------- residuals
+// Weighted residual r (N = 2 mono, 3 stereo) of one observation of the camera-frame point Xc and,
+// if P is given, dr/dXc (N x 3).
+// s = sqrt(obs.inv_sigma2), passed in so that cost functions compute it once.
+template <int N>
+inline void reprojection_residual(const Intrinsics& K, const Observation& obs, double s,
+                                  const Eigen::Vector3d& Xc, double* r,
+                                  Eigen::Matrix<double, N, 3>* dr_dXc) {
+  const bool clamped = Xc.z() < kMinDepth;
+  const double z = clamped ? kMinDepth : Xc.z();
+  const double iz = 1.0 / z;
+  const double u = K.fx * Xc.x() * iz + K.cx;
+  const double v = K.fy * Xc.y() * iz + K.cy;
+  r[0] = s * (obs.uv.x() - u);
+  r[1] = s * (obs.uv.y() - v);
+  if constexpr (N == 3) r[2] = s * (obs.u_right - (u - K.bf * iz));
+  if (!dr_dXc) return;
+  // d(pred)/dXc; in the clamped region z is a constant, so its column is zero.
+  const double iz2 = clamped ? 0.0 : iz * iz;
+  Eigen::Matrix<double, N, 3>& J = *dr_dXc;
+  J(0, 0) = -s * K.fx * iz;
+  J(0, 1) = 0;
+  J(0, 2) = s * K.fx * Xc.x() * iz2;
+  J(1, 0) = 0;
+  J(1, 1) = -s * K.fy * iz;
+  J(1, 2) = s * K.fy * Xc.y() * iz2;
+  if constexpr (N == 3) {
+    J(2, 0) = J(0, 0);
+    J(2, 1) = 0;
+    J(2, 2) = s * (K.fx * Xc.x() - K.bf) * iz2;
+  }
+}
+
+// chi2 = e^T * inv_sigma2 * e of one observation (mono or stereo by obs.stereo()).
+inline double observation_chi2(const Intrinsics& K, const Observation& obs,
+                               const Eigen::Vector3d& Xc) {
+  double r[3];
+  const double s = std::sqrt(obs.inv_sigma2);
+  if (obs.stereo()) {
+    reprojection_residual<3>(K, obs, s, Xc, r, nullptr);
+    return r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+  }
+  reprojection_residual<2>(K, obs, s, Xc, r, nullptr);
+  return r[0] * r[0] + r[1] * r[1];
+}
+
+// Xc = R * Xw + t from a 7-double pose block.
+inline Eigen::Vector3d transform_point(const double* pose, const Eigen::Vector3d& Xw) {
+  Eigen::Map<const Eigen::Quaterniond> q(pose);
+  return q * Xw + Eigen::Vector3d(pose[4], pose[5], pose[6]);
+}
+
+// Writes the pose Jacobian (tangent [w, v] in the first six columns, last column zero) of a
+// residual whose camera-frame Jacobian is dr_dXc; row-major N x 7. Uses dXc/dw = -[Xc]x,
+// dXc/dv = I.
+template <int N>
+inline void pose_jacobian(const Eigen::Matrix<double, N, 3>& dr_dXc, const Eigen::Vector3d& Xc,
+                          double* out) {
+  Eigen::Map<Eigen::Matrix<double, N, 7, Eigen::RowMajor>> J(out);
+  for (int i = 0; i < N; ++i) {
+    const double a = dr_dXc(i, 0), b = dr_dXc(i, 1), c = dr_dXc(i, 2);
+    // row * (-[Xc]x), with -[Xc]x = [[0, z, -y], [-z, 0, x], [y, -x, 0]].
+    J(i, 0) = -b * Xc.z() + c * Xc.y();
+    J(i, 1) = a * Xc.z() - c * Xc.x();
+    J(i, 2) = -a * Xc.y() + b * Xc.x();
+    J(i, 3) = a;
+    J(i, 4) = b;
+    J(i, 5) = c;
+    J(i, 6) = 0;
+  }
+}
+
+// Motion-only cost: the world point is a constant; one pose block.
+template <int N>
+class PoseOnlyCost final : public ceres::SizedCostFunction<N, 7> {
+ public:
+  PoseOnlyCost(const Intrinsics& K, const Eigen::Vector3d& Xw, const Observation& obs)
+      : K_(K), Xw_(Xw), obs_(obs), s_(std::sqrt(obs.inv_sigma2)) {}
+
+  bool Evaluate(double const* const* params, double* residuals, double** jacobians) const override {
+    const Eigen::Vector3d Xc = transform_point(params[0], Xw_);
+    if (!jacobians || !jacobians[0]) {
+      reprojection_residual<N>(K_, obs_, s_, Xc, residuals, nullptr);
+      return true;
+    }
+    Eigen::Matrix<double, N, 3> dr_dXc;
+    reprojection_residual<N>(K_, obs_, s_, Xc, residuals, &dr_dXc);
+    pose_jacobian<N>(dr_dXc, Xc, jacobians[0]);
+    return true;
+  }
+
+ private:
+  Intrinsics K_;
+  Eigen::Vector3d Xw_;
+  Observation obs_;
+  double s_;  // sqrt(inv_sigma2)
+};
+
+// Bundle-adjustment cost: pose block (7) and point block (3).
+template <int N>
+class BaCost final : public ceres::SizedCostFunction<N, 7, 3> {
+ public:
+  BaCost(const Intrinsics& K, const Observation& obs)
+      : K_(K), obs_(obs), s_(std::sqrt(obs.inv_sigma2)) {}
+
+  bool Evaluate(double const* const* params, double* residuals, double** jacobians) const override {
+    const Eigen::Matrix3d R = Eigen::Map<const Eigen::Quaterniond>(params[0]).toRotationMatrix();
+    const Eigen::Vector3d Xc = R * Eigen::Map<const Eigen::Vector3d>(params[1]) +
+                               Eigen::Map<const Eigen::Vector3d>(params[0] + 4);
+    if (!jacobians) {
+      reprojection_residual<N>(K_, obs_, s_, Xc, residuals, nullptr);
+      return true;
+    }
+    Eigen::Matrix<double, N, 3> dr_dXc;
+    reprojection_residual<N>(K_, obs_, s_, Xc, residuals, &dr_dXc);
+    if (jacobians[0]) pose_jacobian<N>(dr_dXc, Xc, jacobians[0]);
+    if (jacobians[1]) {
+      // dXc/dXw = R.
+      Eigen::Map<Eigen::Matrix<double, N, 3, Eigen::RowMajor>> Jp(jacobians[1]);
+      Jp.noalias() = dr_dXc * R;
+    }
+    return true;
+  }
+
+ private:
+  Intrinsics K_;
+  Observation obs_;
+  double s_;  // sqrt(inv_sigma2)
+};
+
+}  // namespace dynaorb::optimize::detail
