@@ -7,6 +7,9 @@
 #include <opencv2/imgproc.hpp>
 
 #include "dynaorb/io/errors.h"
+#include "dynaorb/map/frame.h"
+#include "dynaorb/map/map.h"
+#include "dynaorb/tracking/frame_builder.h"
 
 namespace dynaorb {
 
@@ -54,12 +57,30 @@ bool to_grey(const cv::Mat& in, bool rgb_order, cv::Mat& grey) {
 
 }  // namespace
 
+// A tracked frame, kept relative to its reference keyframe so that the
+// trajectory follows later corrections of the map (ORB-SLAM2).
+struct FrameRecord {
+  double stamp;
+  std::shared_ptr<map::KeyFrame> reference;
+  Eigen::Isometry3d T_c_ref;
+};
+
 struct System::Impl {
   Settings settings;
   Sensor sensor;
+  SystemOptions options;
   SystemCounters counters;
-  Trajectory trajectory;
+  std::vector<FrameRecord> records;
   TrackingState state = TrackingState::kNoImagesYet;
+  long next_frame_id = 0;
+  // Tracked (rectified) camera -> input camera rotation, for the output poses.
+  Eigen::Isometry3d T_rect_input = Eigen::Isometry3d::Identity();
+
+  // The core, built at the first accepted frame (its size fixes the calibration).
+  map::Map map;
+  std::unique_ptr<mapping::LocalMapper> mapper;
+  std::unique_ptr<tracking::FrameBuilder> builder;
+  std::unique_ptr<tracking::Tracker> tracker;
   cv::Size expected_size;  // from the settings, or from the first accepted frame
   double last_stamp = -INFINITY;
   cv::Mat rect_map_l1, rect_map_l2, rect_map_r1, rect_map_r2;
@@ -67,7 +88,7 @@ struct System::Impl {
   // Per-frame working images after preprocessing.
   cv::Mat grey, grey_right, depth_m, mask;
 
-  Impl(const Settings& s, Sensor k) : settings(s), sensor(k) {
+  Impl(const Settings& s, Sensor k, const SystemOptions& o) : settings(s), sensor(k), options(o) {
     settings.validate(sensor);
     if (settings.camera.width > 0 && settings.camera.height > 0)
       expected_size = {settings.camera.width, settings.camera.height};
@@ -77,7 +98,54 @@ struct System::Impl {
       cv::initUndistortRectifyMap(q.K_l, q.D_l, q.R_l, q.P_l.colRange(0, 3), size, CV_16SC2, rect_map_l1, rect_map_l2);
       cv::initUndistortRectifyMap(q.K_r, q.D_r, q.R_r, q.P_r.colRange(0, 3), size, CV_16SC2, rect_map_r1, rect_map_r2);
       expected_size = size;
+      Eigen::Matrix3d R;
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) R(r, c) = q.R_l.at<double>(r, c);
+      T_rect_input.linear() = R;
     }
+  }
+
+  void ensure_core(const cv::Size& size) {
+    if (tracker) return;
+    auto calib = map::Calibration::make(settings, sensor, size.width, size.height);
+    builder = std::make_unique<tracking::FrameBuilder>(settings, calib);
+    mapper = std::make_unique<mapping::LocalMapper>(map, sensor, options.mapping);
+    tracking::TrackerOptions t = options.tracker;
+    if (settings.camera.fps > 0) t.max_frames = static_cast<int>(std::lround(settings.camera.fps));
+    tracker = std::make_unique<tracking::Tracker>(map, *mapper, sensor, t);
+  }
+
+  // Output pose of the input camera in the world of the first input camera.
+  Pose output_pose(const Eigen::Isometry3d& T_cw) const {
+    return T_rect_input.inverse() * T_cw.inverse() * T_rect_input;
+  }
+
+  void track_features(std::shared_ptr<const map::Features> features, double stamp, TrackResult& r) {
+    map::Frame frame(next_frame_id++, stamp, std::move(features));
+    r.keypoints = frame.size();
+    const auto t0 = Clock::now();
+    const tracking::TrackOutcome out = tracker->track(frame);
+    r.stage_ms["tracking"] = ms_since(t0);
+    r.method = out.method;
+    r.new_keyframe = out.new_keyframe;
+    if (out.initialized) ++counters.initializations;
+    if (out.ok) {
+      r.state = TrackingState::kOk;
+      r.pose = output_pose(frame.T_cw);
+      r.tracked_points = out.initialized ? frame.matched_points() : out.inliers;
+      records.push_back({stamp, frame.reference, frame.T_cw * frame.reference->T_wc()});
+    } else {
+      r.state = tracker->initialized() || counters.initializations > 0 ? TrackingState::kLost
+                                                                       : TrackingState::kNotInitialized;
+      if (r.state == TrackingState::kLost) ++counters.lost;
+      r.message = out.method == "init" ? "not enough keypoints with depth to initialise" : "tracking lost";
+    }
+    if (out.keyframe) {
+      mapper->insert_keyframe(out.keyframe);
+      if (options.synchronous_mapping) mapper->wait_idle();
+    }
+    for (const auto& times : mapper->take_stage_times())
+      for (const auto& [stage, ms] : times) r.stage_ms[stage] += ms;
   }
 
   // Refuses a call for another sensor (a programming error, not bad data), then counts the frame.
@@ -131,25 +199,55 @@ struct System::Impl {
     r.mask_used = true;
   }
 
+  // Extraction exclusion mask in the tracked image (rectified for stereo).
+  cv::Mat exclusion() const {
+    if (mask.empty() || rect_map_l1.empty()) return mask;
+    cv::Mat m;
+    cv::remap(mask, m, rect_map_l1, rect_map_l2, cv::INTER_NEAREST);
+    return m;
+  }
+
   TrackResult finish(TrackResult r, double stamp, Clock::time_point start) {
     r.stage_ms["preprocess"] = ms_since(start);
     if (expected_size.area() == 0) expected_size = grey.size();
     last_stamp = stamp;
-    // The tracking and mapping core (ORB extraction, motion model, local map,
-    // bundle adjustment) is not part of this build yet: every accepted frame
-    // leaves the system NOT_INITIALIZED and produces no pose.
-    state = TrackingState::kNotInitialized;
-    r.state = state;
-    r.message = "tracking core not available in this build";
-    if (r.state == TrackingState::kOk && r.pose) {
-      ++counters.tracked;
-      trajectory.push_back({stamp, *r.pose});
+    ensure_core(grey.size());
+    tracking::StageTimes t;
+    std::shared_ptr<const map::Features> f;
+    switch (sensor) {
+      case Sensor::kMono: f = builder->mono(grey, exclusion(), t); break;
+      case Sensor::kStereo: f = builder->stereo(grey, grey_right, exclusion(), t); break;
+      case Sensor::kRGBD: f = builder->rgbd(grey, depth_m, exclusion(), t); break;
     }
+    r.stage_ms.insert(t.begin(), t.end());
+    if (sensor == Sensor::kMono) {
+      // Monocular initialisation (two-view geometry) is SLAM core II.
+      r.keypoints = f->size();
+      r.state = state = TrackingState::kNotInitialized;
+      r.message = "monocular tracking is not available in this build";
+      return r;
+    }
+    track_features(std::move(f), stamp, r);
+    state = r.state;
+    if (r.state == TrackingState::kOk) ++counters.tracked;
     return r;
+  }
+
+  void reset() {
+    if (mapper) mapper->clear_queue();
+    {
+      std::lock_guard<std::mutex> lk(map.mutex());
+      map.clear();
+      if (tracker) tracker->reset();
+    }
+    records.clear();
+    state = TrackingState::kNoImagesYet;
+    last_stamp = -INFINITY;
   }
 };
 
-System::System(const Settings& settings, Sensor sensor) : impl_(std::make_unique<Impl>(settings, sensor)) {}
+System::System(const Settings& settings, Sensor sensor, const SystemOptions& options)
+    : impl_(std::make_unique<Impl>(settings, sensor, options)) {}
 System::~System() = default;
 
 TrackResult System::track_mono(const cv::Mat& image, double stamp, const cv::Mat& mask) {
@@ -212,13 +310,37 @@ TrackResult System::track_rgbd(const cv::Mat& image, const cv::Mat& depth, doubl
 Sensor System::sensor() const { return impl_->sensor; }
 const Settings& System::settings() const { return impl_->settings; }
 const SystemCounters& System::counters() const { return impl_->counters; }
-Trajectory System::trajectory() const { return impl_->trajectory; }
-
-void System::reset() {
-  Impl& s = *impl_;
-  s.trajectory.clear();
-  s.state = TrackingState::kNoImagesYet;
-  s.last_stamp = -INFINITY;
+Trajectory System::trajectory() const {
+  const Impl& s = *impl_;
+  Trajectory out;
+  out.reserve(s.records.size());
+  std::lock_guard<std::mutex> lk(s.map.mutex());
+  for (const FrameRecord& r : s.records)
+    out.push_back({r.stamp, s.output_pose(r.T_c_ref * r.reference->current_T_cw())});
+  return out;
 }
+
+std::vector<Eigen::Vector3d> System::map_points() const {
+  const Impl& s = *impl_;
+  std::vector<Eigen::Vector3d> out;
+  std::lock_guard<std::mutex> lk(s.map.mutex());
+  const Eigen::Isometry3d T_input_rect = s.T_rect_input.inverse();
+  for (const auto& p : s.map.points()) out.push_back(T_input_rect * p->position());
+  return out;
+}
+
+MapSummary System::map_summary() const {
+  const Impl& s = *impl_;
+  MapSummary m;
+  {
+    std::lock_guard<std::mutex> lk(s.map.mutex());
+    m.keyframes = static_cast<long>(s.map.keyframe_count());
+    m.points = static_cast<long>(s.map.point_count());
+  }
+  if (s.mapper) m.mapping = s.mapper->counters();
+  return m;
+}
+
+void System::reset() { impl_->reset(); }
 
 }  // namespace dynaorb

@@ -11,6 +11,8 @@
 #include "dynaorb/core/pose.h"
 #include "dynaorb/core/sensor.h"
 #include "dynaorb/io/settings.h"
+#include "dynaorb/mapping/local_mapper.h"
+#include "dynaorb/tracking/tracker.h"
 
 namespace dynaorb {
 
@@ -31,9 +33,31 @@ struct TrackResult {
   RejectReason rejected = RejectReason::kNone;
   std::optional<Pose> pose;                  // T_world_camera when state == kOk
   std::string message;                       // human-readable detail for rejections
-  std::map<std::string, double> stage_ms;    // per-stage wall time for this frame
+  // Per-stage wall time: this frame's (preprocess, extract, stereo_matching,
+  // tracking) and those of the keyframes local mapping finished meanwhile
+  // (local_mapping, triangulation, fuse, local_ba, keyframe_culling).
+  std::map<std::string, double> stage_ms;
   int invalid_depth_pixels = 0;              // NaN / zero / negative depth (RGB-D)
   bool mask_used = false;                    // a valid mask came with the frame
+  int keypoints = 0;                         // ORB keypoints extracted (outside the mask)
+  int tracked_points = 0;                    // map points matched and inliers
+  bool new_keyframe = false;
+  std::string method;                        // init / motion_model / reference_keyframe / lost
+};
+
+struct SystemOptions {
+  // true: each keyframe is fully mapped (local BA included) before the next
+  // frame is tracked; runs are then repeatable. false: local mapping runs
+  // concurrently, as on a live camera.
+  bool synchronous_mapping = false;
+  tracking::TrackerOptions tracker;        // max_frames defaults to Camera.fps
+  mapping::LocalMapperOptions mapping;
+};
+
+struct MapSummary {
+  long keyframes = 0;
+  long points = 0;
+  mapping::LocalMapperCounters mapping;
 };
 
 struct SystemCounters {
@@ -41,13 +65,15 @@ struct SystemCounters {
   long rejected = 0;        // frames refused (see rejected_by_reason)
   long tracked = 0;         // frames with state kOk
   long masks_dropped = 0;   // masks ignored because of a wrong size or type
+  long lost = 0;            // frames with state kLost
+  long initializations = 0; // map (re)initialisations
   std::map<std::string, long> rejected_by_reason;
 };
 
 class System {
  public:
   // Validates the settings for the sensor (throws InputError naming the key).
-  System(const Settings& settings, Sensor sensor);
+  System(const Settings& settings, Sensor sensor, const SystemOptions& options = {});
   ~System();
   System(const System&) = delete;
   System& operator=(const System&) = delete;
@@ -67,7 +93,12 @@ class System {
   Sensor sensor() const;
   const Settings& settings() const;
   const SystemCounters& counters() const;
-  Trajectory trajectory() const;  // poses of tracked frames, in order
+  // Poses of tracked frames, in order, through their reference keyframes'
+  // current (bundle-adjusted) poses. Camera frame: the input camera (for
+  // rectified stereo the unrectified left camera); world: its first pose.
+  Trajectory trajectory() const;
+  std::vector<Eigen::Vector3d> map_points() const;  // world coordinates
+  MapSummary map_summary() const;
   void reset();
 
  private:

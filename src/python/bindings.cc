@@ -162,13 +162,20 @@ PYBIND11_MODULE(_core, m) {
       .def_readonly("message", &TrackResult::message)
       .def_readonly("stage_ms", &TrackResult::stage_ms)
       .def_readonly("invalid_depth_pixels", &TrackResult::invalid_depth_pixels)
-      .def_readonly("mask_used", &TrackResult::mask_used);
+      .def_readonly("mask_used", &TrackResult::mask_used)
+      .def_readonly("keypoints", &TrackResult::keypoints)
+      .def_readonly("tracked_points", &TrackResult::tracked_points)
+      .def_readonly("new_keyframe", &TrackResult::new_keyframe)
+      .def_readonly("method", &TrackResult::method);
 
   py::class_<System>(m, "System")
-      .def(py::init([](const Settings& s, const std::string& sensor) {
-             return std::make_unique<System>(s, parse_sensor(sensor));
+      .def(py::init([](const Settings& s, const std::string& sensor, bool synchronous_mapping) {
+             SystemOptions o;
+             o.synchronous_mapping = synchronous_mapping;
+             return std::make_unique<System>(s, parse_sensor(sensor), o);
            }),
-           py::arg("settings"), py::arg("sensor"))
+           py::arg("settings"), py::arg("sensor"), py::arg("synchronous_mapping") = false,
+           "synchronous_mapping: map each keyframe before tracking the next frame (repeatable runs).")
       .def("track_mono",
            [](System& s, const py::object& image, double stamp, const py::object& mask) {
              cv::Mat i = as_mat(image, "image"), k = as_mat(mask, "mask");
@@ -212,6 +219,29 @@ PYBIND11_MODULE(_core, m) {
         d["tracked"] = c.tracked;
         d["masks_dropped"] = c.masks_dropped;
         d["rejected_by_reason"] = c.rejected_by_reason;
+        d["lost"] = c.lost;
+        d["initializations"] = c.initializations;
+        return d;
+      })
+      .def("map_points", [](const System& s) {
+        const std::vector<Eigen::Vector3d> pts = s.map_points();
+        py::array_t<double> a({static_cast<py::ssize_t>(pts.size()), py::ssize_t(3)});
+        auto v = a.mutable_unchecked<2>();
+        for (size_t i = 0; i < pts.size(); ++i)
+          for (int k = 0; k < 3; ++k) v(i, k) = pts[i](k);
+        return a;
+      }, "Sparse map points (N, 3) in the world frame.")
+      .def("map_summary", [](const System& s) {
+        const MapSummary m = s.map_summary();
+        py::dict d;
+        d["keyframes"] = m.keyframes;
+        d["points"] = m.points;
+        d["points_created"] = m.mapping.points_created;
+        d["points_culled"] = m.mapping.points_culled;
+        d["points_fused"] = m.mapping.points_fused;
+        d["keyframes_culled"] = m.mapping.keyframes_culled;
+        d["local_ba_runs"] = m.mapping.local_ba_runs;
+        d["local_ba_aborted"] = m.mapping.local_ba_aborted;
         return d;
       })
       .def("trajectory", [](const System& s) { return trajectory_to_numpy(s.trajectory()); })

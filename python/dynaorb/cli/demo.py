@@ -49,7 +49,7 @@ def run_demo(out: pathlib.Path, frames: int = 60, seed: int = 0) -> str:
         ate = stats.get("ate")
         rows.append((name, f"{stats['tracked_frames']}/{stats['frames']}",
                      f"{ate['rmse']:.4f}" if ate else "n/a",
-                     f"{stats['stage_ms_median'].get('total', float('nan')):.1f}",
+                     f"{stats['stage_ms_median'].get('frame_total', float('nan')):.1f}",
                      "" if ate else stats.get("reason", "")))
     head = ("run", "tracked", "ATE RMSE [m]", "ms/frame", "note")
     widths = [max(len(str(r[k])) for r in rows + [head]) for k in range(len(head))]

@@ -22,6 +22,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--dynamic", default="off", help="dynamic-object front-end preset (default off)")
     r.add_argument("--masks", help="folder of per-frame masks / label images named like the frames")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--async-mapping", action="store_true",
+                   help="run local mapping concurrently as on a live camera (default: each keyframe is "
+                        "mapped before the next frame, which makes runs repeatable)")
     r.set_defaults(func=commands.cmd_run)
 
     e = sub.add_parser("eval", help="ATE / RPE of an estimate against ground truth (evo)")

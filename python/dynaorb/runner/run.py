@@ -1,9 +1,11 @@
 """`dynaorb run`: iterate a dataset through the core and write what came out.
 
 Writes OUT/trajectory.tum (and trajectory.kitti for KITTI), OUT/groundtruth.tum
-when the dataset has ground truth, and OUT/stats.json: frames, tracked frames,
-skipped and rejected frames with reasons, per-stage median ms, fps, and ATE
-against the ground truth when enough frames were tracked.
+when the dataset has ground truth, OUT/map_points.ply (the sparse map) and
+OUT/stats.json: frames, tracked frames, skipped and rejected frames with
+reasons, per-stage median ms (per frame for the tracking thread, per keyframe
+for local mapping), fps, map size, and ATE / RPE against the ground truth when
+enough frames were tracked.
 """
 from __future__ import annotations
 
@@ -14,6 +16,8 @@ import logging
 import pathlib
 import statistics
 import time
+
+import numpy as np
 
 from dynaorb import core
 from dynaorb.runner.masks import MaskFolder
@@ -35,6 +39,14 @@ class RunOptions:
     dynamic: str = "off"
     masks: str | None = None
     progress: bool = True
+    # Map each keyframe before tracking the next frame: repeatable runs. False
+    # runs local mapping concurrently, as a live camera would.
+    synchronous_mapping: bool = True
+
+
+# Stages of the tracking thread (summed into "frame_total"); the others are
+# local mapping's, reported per keyframe.
+FRAME_STAGES = ("preprocess", "extract", "stereo_matching", "tracking")
 
 
 def _settings(provider, config: str | None):
@@ -48,8 +60,18 @@ def _median_stages(per_frame: list[dict]) -> dict:
     for ms in per_frame:
         for k, v in ms.items():
             stages[k].append(v)
-        stages["total"].append(sum(ms.values()))
+        stages["frame_total"].append(sum(v for k, v in ms.items() if k in FRAME_STAGES))
     return {k: statistics.median(v) for k, v in stages.items()}
+
+
+def write_ply(path: pathlib.Path, points) -> None:
+    """ASCII PLY of an (N, 3) array of points."""
+    with open(path, "w") as f:
+        f.write("ply\nformat ascii 1.0\n")
+        f.write(f"element vertex {len(points)}\nproperty float x\nproperty float y\nproperty float z\n")
+        f.write("end_header\n")
+        for x, y, z in points:
+            f.write(f"{x:.6f} {y:.6f} {z:.6f}\n")
 
 
 def _evaluate(provider, stamps, poses, sensor: str, out: pathlib.Path) -> dict:
@@ -70,8 +92,22 @@ def _evaluate(provider, stamps, poses, sensor: str, out: pathlib.Path) -> dict:
                           align=align, rpe_delta=1.0, rpe_unit="frames")
     except ValueError as exc:
         return {"ate": None, "reason": str(exc)}
-    return {"ate": result.ate, "rpe_trans": result.rpe_trans, "rpe_rot": result.rpe_rot,
-            "align": align, "matched_poses": result.matched_poses}
+    stats = {"ate": result.ate, "rpe_trans": result.rpe_trans, "rpe_rot": result.rpe_rot,
+             "align": align, "matched_poses": result.matched_poses}
+    # Drift per distance travelled, in %, over segments of a tenth of the path
+    # (at least 1 m): the short clips here are far below KITTI's 100-800 m.
+    length = float(np.sum(np.linalg.norm(np.diff(gt_poses[:, :3, 3], axis=0), axis=1)))
+    delta = max(1.0, round(length / 10.0, 1))
+    try:
+        per_m = evaluate(PoseTrajectory3D(poses_se3=list(gt_poses), timestamps=gt_stamps),
+                         PoseTrajectory3D(poses_se3=list(poses), timestamps=stamps),
+                         align=align, rpe_delta=delta, rpe_unit="m")
+        stats["rpe_percent"] = per_m.rpe_percent
+        stats["rpe_delta_m"] = delta
+    except ValueError as exc:
+        stats["rpe_percent"] = None
+        stats["rpe_percent_reason"] = str(exc)
+    return stats
 
 
 def run_dataset(opts: RunOptions) -> dict:
@@ -83,13 +119,14 @@ def run_dataset(opts: RunOptions) -> dict:
     for w in provider.warnings:
         log.warning("%s: %s", opts.path, w)
     settings = _settings(provider, opts.config)
-    system = _core.System(settings, provider.sensor)
+    system = _core.System(settings, provider.sensor, synchronous_mapping=opts.synchronous_mapping)
     masks = MaskFolder(opts.masks) if opts.masks else None
     out = pathlib.Path(opts.out)
     out.mkdir(parents=True, exist_ok=True)
 
     skipped = collections.Counter()
     states = collections.Counter()
+    methods = collections.Counter()
     per_frame_ms = []
     frames = range(len(provider))
     if opts.progress:
@@ -109,6 +146,7 @@ def run_dataset(opts: RunOptions) -> dict:
         if result.rejected != "none":
             log.warning("frame %d (%s) rejected: %s", i, frame.image_path, result.message)
         states[result.state] += 1
+        methods[result.method or "rejected"] += 1
         per_frame_ms.append(dict(result.stage_ms))
     wall = time.perf_counter() - start
 
@@ -116,6 +154,7 @@ def run_dataset(opts: RunOptions) -> dict:
     _core.write_tum(str(out / "trajectory.tum"), stamps, poses)
     if opts.kind == "kitti":
         _core.write_kitti(str(out / "trajectory.kitti"), stamps, poses)
+    write_ply(out / "map_points.ply", system.map_points())
     counters = system.counters()
     stats = {
         "dataset": {"kind": opts.kind, "path": str(opts.path), "sensor": provider.sensor,
@@ -128,6 +167,11 @@ def run_dataset(opts: RunOptions) -> dict:
         "tracked_frames": int(counters["tracked"]),
         "tracked_fraction": counters["tracked"] / max(len(provider), 1),
         "states": dict(states),
+        "tracking_methods": dict(methods),
+        "lost_frames": int(counters["lost"]),
+        "initializations": int(counters["initializations"]),
+        "map": system.map_summary(),
+        "synchronous_mapping": opts.synchronous_mapping,
         "stage_ms_median": _median_stages(per_frame_ms),
         "wall_s": wall,
         "fps": len(per_frame_ms) / wall if wall > 0 else None,

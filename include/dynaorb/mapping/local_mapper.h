@@ -1,0 +1,86 @@
+#pragma once
+// Local mapping (ORB-SLAM Sec. VI) in its own thread: keyframes arrive
+// through a queue (condition variable, no polling); each is inserted into
+// the covisibility graph, recent map points are culled, new points are
+// triangulated with covisible keyframes, duplicates are fused, the local
+// window is bundle adjusted (Ceres) and redundant keyframes are culled.
+#include <atomic>
+#include <condition_variable>
+#include <deque>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "dynaorb/map/map.h"
+
+namespace dynaorb::mapping {
+
+using StageTimes = std::map<std::string, double>;
+
+struct LocalMapperOptions {
+  int neighbors_stereo = 10;        // covisible keyframes to triangulate with
+  int neighbors_mono = 20;
+  double min_found_ratio = 0.25;    // recent points found / visible below this go
+  int min_observations_stereo = 3;  // after 2 keyframes, fewer observations: culled
+  int min_observations_mono = 2;
+  double redundant_ratio = 0.9;     // keyframe culled when this share of its points
+  int redundant_observers = 3;      //   is seen by this many others at a similar scale
+  bool local_ba = true;
+  int ba_threads = 1;
+};
+
+struct LocalMapperCounters {
+  long keyframes = 0, points_created = 0, points_culled = 0, points_fused = 0;
+  long keyframes_culled = 0, local_ba_runs = 0, local_ba_aborted = 0;
+};
+
+class LocalMapper {
+ public:
+  LocalMapper(map::Map& map, Sensor sensor, const LocalMapperOptions& options = {});
+  ~LocalMapper();
+  LocalMapper(const LocalMapper&) = delete;
+  LocalMapper& operator=(const LocalMapper&) = delete;
+
+  // The keyframe must already be in the map (tracking adds it with its new points).
+  void insert_keyframe(std::shared_ptr<map::KeyFrame> kf);
+  bool idle() const;              // nothing queued or being processed
+  size_t queued() const;
+  void interrupt_ba() { abort_ba_ = true; }
+  void wait_idle();               // blocks until the queue is drained
+  void clear_queue();             // drops queued keyframes (reset)
+
+  LocalMapperCounters counters() const;
+  // Stage times of the keyframes processed since the last call.
+  std::vector<StageTimes> take_stage_times();
+
+ private:
+  void run();
+  void process(const std::shared_ptr<map::KeyFrame>& kf, StageTimes& t);
+  void insert_into_graph(map::KeyFrame& kf);
+  void cull_recent_points(const map::KeyFrame& kf);
+  void create_new_points(const std::shared_ptr<map::KeyFrame>& kf);
+  void fuse_with_neighbors(map::KeyFrame& kf);
+  void local_bundle_adjustment(map::KeyFrame& kf);
+  void cull_keyframes(map::KeyFrame& kf);
+  bool has_new_keyframes() const;
+
+  map::Map& map_;
+  const Sensor sensor_;
+  const LocalMapperOptions o_;
+  std::vector<std::shared_ptr<map::MapPoint>> recent_points_;
+
+  mutable std::mutex queue_mutex_;
+  std::condition_variable queue_cv_, idle_cv_;
+  std::deque<std::shared_ptr<map::KeyFrame>> queue_;
+  bool busy_ = false;
+  bool stop_ = false;
+  std::atomic<bool> abort_ba_{false};
+  LocalMapperCounters counters_;
+  std::vector<StageTimes> stage_times_;
+  std::thread thread_;
+};
+
+}  // namespace dynaorb::mapping

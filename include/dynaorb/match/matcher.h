@@ -1,0 +1,60 @@
+#pragma once
+// ORB matching between frames, keyframes and map points (ORB-SLAM's
+// searches): guided by projection where a pose is known, by descriptor and
+// epipolar geometry where it is not. Descriptor thresholds are ORB-SLAM's
+// TH_HIGH / TH_LOW; an orientation histogram keeps the matches whose rotation
+// agrees with the three dominant ones.
+#include <Eigen/Core>
+#include <memory>
+#include <utility>
+#include <vector>
+
+#include "dynaorb/map/frame.h"
+#include "dynaorb/map/map.h"
+
+namespace dynaorb::match {
+
+struct MatcherOptions {
+  int th_high = 100;
+  int th_low = 50;
+  bool check_orientation = true;
+  int histogram_bins = 30;
+};
+
+class Matcher {
+ public:
+  explicit Matcher(const MatcherOptions& options = {}) : o_(options) {}
+
+  // Motion model: projects the points of `last` into `cur` (whose pose is
+  // set) and matches within th * scale of the last keypoint's level; stereo
+  // frames restrict the levels by the direction of motion (ORB-SLAM2).
+  int search_by_projection(map::Frame& cur, const map::Frame& last, double th) const;
+
+  // Local map: the points whose track scratch says they are in cur's frustum
+  // and not yet matched; best / second best ratio on the same level.
+  int search_local_points(map::Frame& cur, const std::vector<std::shared_ptr<map::MapPoint>>& points,
+                          double th, double nn_ratio = 0.8) const;
+
+  // Reference keyframe without a vocabulary: each map point of kf against
+  // all keypoints of cur by descriptor (best below th_low and below
+  // nn_ratio * second best), then the orientation check.
+  int search_keyframe(const map::KeyFrame& kf, map::Frame& cur, double nn_ratio = 0.7) const;
+
+  // Pairs of unmatched keypoints of kf1 / kf2 whose descriptors agree and
+  // whose kf2 keypoint lies on the epipolar line of the kf1 one (F12 maps kf1
+  // pixels to kf2 lines), for triangulation.
+  std::vector<std::pair<int, int>> search_for_triangulation(const map::KeyFrame& kf1,
+                                                            const map::KeyFrame& kf2,
+                                                            const Eigen::Matrix3d& F12) const;
+
+  // Projects points into kf: where the keypoint already has a point, the one
+  // with fewer observations is replaced by the other; otherwise the point
+  // gains the observation. Returns the number of fused points.
+  int fuse(map::Map& map, map::KeyFrame& kf, const std::vector<std::shared_ptr<map::MapPoint>>& points,
+           double th = 3.0) const;
+
+ private:
+  MatcherOptions o_;
+};
+
+}  // namespace dynaorb::match

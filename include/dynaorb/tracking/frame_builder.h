@@ -1,0 +1,39 @@
+#pragma once
+// Turns images into Features: ORB extraction (left and right in parallel for
+// stereo), keypoint undistortion, stereo matching along rectified rows or the
+// RGB-D virtual right coordinate from depth, and the search grid.
+#include <map>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <string>
+
+#include "dynaorb/features/orb_extractor.h"
+#include "dynaorb/map/features.h"
+
+namespace dynaorb::tracking {
+
+using StageTimes = std::map<std::string, double>;
+
+class FrameBuilder {
+ public:
+  FrameBuilder(const Settings& settings, std::shared_ptr<const map::Calibration> calib);
+
+  // grey: CV_8UC1 tracked image; exclude: empty or CV_8UC1, non-zero pixels
+  // get no keypoints. depth: CV_32F metres, 0 = no measurement.
+  std::shared_ptr<const map::Features> mono(const cv::Mat& grey, const cv::Mat& exclude, StageTimes& t);
+  std::shared_ptr<const map::Features> stereo(const cv::Mat& left, const cv::Mat& right,
+                                              const cv::Mat& exclude, StageTimes& t);
+  std::shared_ptr<const map::Features> rgbd(const cv::Mat& grey, const cv::Mat& depth,
+                                            const cv::Mat& exclude, StageTimes& t);
+
+  const std::shared_ptr<const map::Calibration>& calib() const { return calib_; }
+
+ private:
+  std::shared_ptr<map::Features> extract(const cv::Mat& grey, const cv::Mat& exclude, StageTimes& t);
+  void finish(map::Features& f) const;  // undistortion and grid
+
+  std::shared_ptr<const map::Calibration> calib_;
+  features::OrbExtractor left_, right_;
+};
+
+}  // namespace dynaorb::tracking

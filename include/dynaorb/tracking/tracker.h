@@ -1,0 +1,94 @@
+#pragma once
+// Tracking (ORB-SLAM Sec. V, ORB-SLAM2 Sec. III): the pose of each frame
+// from the map. Constant-velocity motion model with guided search, falling
+// back to matching against the reference keyframe; then the local map
+// (points of covisible keyframes) projected and matched; motion-only BA with
+// outlier rejection after each step; ORB-SLAM2's keyframe decision. Stereo
+// and RGB-D initialise the map from the first frame with enough depth.
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "dynaorb/map/frame.h"
+#include "dynaorb/map/map.h"
+#include "dynaorb/mapping/local_mapper.h"
+#include "dynaorb/match/matcher.h"
+
+namespace dynaorb::tracking {
+
+struct TrackerOptions {
+  int min_init_keypoints = 500;       // keypoints to initialise from a frame (ORB-SLAM2: N > 500)
+  int min_init_depth_points = 100;    // of which with depth (ours: ORB-SLAM2 takes any; a map of
+                                      // fewer cannot pass the local-map inlier check reliably)
+  double motion_th_stereo = 7.0;      // motion-model search radius, pixels at level 0
+  double motion_th_mono = 15.0;
+  int min_motion_matches = 20;        // below: search again with twice the radius
+  int min_reference_matches = 15;
+  int min_pose_inliers = 10;          // after motion-only BA
+  int min_local_map_inliers = 30;
+  double local_search_th_stereo = 1.0;
+  double local_search_th_rgbd = 3.0;
+  double local_search_th_mono = 1.0;
+  int max_local_keyframes = 80;
+  double ref_ratio_stereo = 0.75;     // new keyframe when tracking < ratio * reference's points
+  double ref_ratio_mono = 0.9;
+  int close_tracked_max = 100;        // "need close points" when fewer tracked close
+  int close_untracked_min = 70;       //   and this many untracked close ones
+  int new_keyframe_close_points = 100;  // new keyframe points: all close ones, at least this many
+  int max_frames = 30;                // keyframe at least every max_frames (= fps)
+  int min_frames = 0;
+  int reset_if_lost_below_keyframes = 5;
+};
+
+struct TrackOutcome {
+  bool ok = false;
+  bool initialized = false;   // the map was (re)created with this frame
+  bool new_keyframe = false;
+  std::string method;         // "init", "motion_model", "reference_keyframe", "lost"
+  int inliers = 0;
+  std::shared_ptr<map::KeyFrame> keyframe;  // the new keyframe, for the mapper
+};
+
+class Tracker {
+ public:
+  Tracker(map::Map& map, mapping::LocalMapper& mapper, Sensor sensor, const TrackerOptions& options);
+
+  // Estimates frame.T_cw; takes the map lock for its duration. On a new
+  // keyframe the caller hands outcome.keyframe to the local mapper.
+  TrackOutcome track(map::Frame& frame);
+  void reset();
+  bool initialized() const { return initialized_; }
+
+ private:
+  bool initialize(map::Frame& f);
+  bool track_motion_model(map::Frame& f);
+  bool track_reference_keyframe(map::Frame& f);
+  bool track_local_map(map::Frame& f);
+  void update_last_frame();
+  void update_local_map(map::Frame& f);
+  int optimize_pose(map::Frame& f);     // returns inliers that are map points
+  int discard_outliers(map::Frame& f);  // returns remaining map-point matches
+  bool need_new_keyframe(const map::Frame& f) const;
+  std::shared_ptr<map::KeyFrame> create_keyframe(map::Frame& f);
+
+  map::Map& map_;
+  mapping::LocalMapper& mapper_;
+  const Sensor sensor_;
+  const TrackerOptions o_;
+  const match::Matcher matcher_;
+
+  bool initialized_ = false;
+  bool last_ok_ = false;
+  map::Frame last_;
+  Eigen::Isometry3d last_T_c_ref_ = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();
+  bool has_velocity_ = false;
+  std::shared_ptr<map::KeyFrame> reference_;
+  long last_keyframe_frame_ = -1;
+  int inliers_ = 0;
+  std::vector<std::shared_ptr<map::KeyFrame>> local_keyframes_;
+  std::vector<std::shared_ptr<map::MapPoint>> local_points_;
+  std::vector<std::shared_ptr<map::MapPoint>> temporal_points_;  // last frame's visual-odometry points
+};
+
+}  // namespace dynaorb::tracking

@@ -1,0 +1,182 @@
+// Local mapping: new map points from covisible keyframe pairs, and fusion
+// of duplicates with the neighbours (ORB-SLAM Sec. VI-D and VI-C).
+#include <Eigen/SVD>
+#include <cmath>
+#include <set>
+
+#include "dynaorb/mapping/local_mapper.h"
+#include "dynaorb/match/matcher.h"
+
+namespace dynaorb::mapping {
+
+using map::KeyFrame;
+using map::MapPoint;
+
+namespace {
+
+Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d m;
+  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return m;
+}
+
+// F12 such that x1^T F12 x2 = 0 for pixels x1 of kf1 and x2 of kf2.
+Eigen::Matrix3d fundamental(const KeyFrame& kf1, const KeyFrame& kf2) {
+  const Eigen::Isometry3d T12 = kf1.T_cw() * kf2.T_wc();
+  const Eigen::Matrix3d E = skew(T12.translation()) * T12.rotation();
+  Eigen::Matrix3d K1, K2;
+  const map::Calibration& c1 = kf1.calib();
+  const map::Calibration& c2 = kf2.calib();
+  K1 << c1.fx, 0, c1.cx, 0, c1.fy, c1.cy, 0, 0, 1;
+  K2 << c2.fx, 0, c2.cx, 0, c2.fy, c2.cy, 0, 0, 1;
+  return K1.inverse().transpose() * E * K2.inverse();
+}
+
+// Linear triangulation (DLT) from normalised image coordinates.
+bool triangulate(const Eigen::Vector3d& x1, const Eigen::Matrix<double, 3, 4>& P1,
+                 const Eigen::Vector3d& x2, const Eigen::Matrix<double, 3, 4>& P2, Eigen::Vector3d& X) {
+  Eigen::Matrix4d A;
+  A.row(0) = x1.x() * P1.row(2) - P1.row(0);
+  A.row(1) = x1.y() * P1.row(2) - P1.row(1);
+  A.row(2) = x2.x() * P2.row(2) - P2.row(0);
+  A.row(3) = x2.y() * P2.row(2) - P2.row(1);
+  Eigen::JacobiSVD<Eigen::Matrix4d> svd(A, Eigen::ComputeFullV);
+  const Eigen::Vector4d h = svd.matrixV().col(3);
+  if (std::abs(h(3)) < 1e-12) return false;
+  X = h.head<3>() / h(3);
+  return true;
+}
+
+// Reprojection check of a new point in one keyframe (chi2 at 95 %).
+bool reprojects(const KeyFrame& kf, int i, const Eigen::Vector3d& X) {
+  const Eigen::Vector3d pc = kf.T_cw() * X;
+  if (pc.z() <= 0) return false;
+  const map::Calibration& c = kf.calib();
+  const cv::KeyPoint& k = kf.f().keys_un[i];
+  const Eigen::Vector2d uv = c.project(pc);
+  const double ex = uv.x() - k.pt.x, ey = uv.y() - k.pt.y;
+  const double s2 = c.scale.sigma2[k.octave];
+  const float ur = kf.f().u_right[i];
+  if (ur < 0) return ex * ex + ey * ey <= 5.991 * s2;
+  const double er = uv.x() - c.bf / pc.z() - ur;
+  return ex * ex + ey * ey + er * er <= 7.8 * s2;
+}
+
+}  // namespace
+
+void LocalMapper::create_new_points(const std::shared_ptr<KeyFrame>& kf_ptr) {
+  const bool mono = sensor_ == Sensor::kMono;
+  const match::Matcher matcher;
+  std::unique_lock<std::mutex> lk(map_.mutex());
+  if (kf_ptr->erased()) return;
+  KeyFrame& kf1 = *kf_ptr;
+  const std::vector<KeyFrame*> neighbors = kf1.covisibles(mono ? o_.neighbors_mono : o_.neighbors_stereo);
+  const map::Calibration& c = kf1.calib();
+  const map::ScalePyramid& s = c.scale;
+  const double ratio_factor = 1.5 * s.scale_factor;
+  const Eigen::Vector3d C1 = kf1.center();
+  Eigen::Matrix<double, 3, 4> P1 = kf1.T_cw().matrix().topRows<3>();
+  const Eigen::Matrix3d Rwc1 = kf1.T_wc().rotation();
+  int created = 0;
+  for (size_t n = 0; n < neighbors.size(); ++n) {
+    if (n > 0 && has_new_keyframes()) break;  // give way to tracking (ORB-SLAM)
+    KeyFrame& kf2 = *neighbors[n];
+    const Eigen::Vector3d C2 = kf2.center();
+    const double baseline = (C2 - C1).norm();
+    if (!mono) {
+      if (baseline < c.baseline) continue;
+    } else {
+      const double median = kf2.median_depth(0.5);
+      if (median <= 0 || baseline / median < 0.01) continue;
+    }
+    const auto pairs = matcher.search_for_triangulation(kf1, kf2, fundamental(kf1, kf2));
+    Eigen::Matrix<double, 3, 4> P2 = kf2.T_cw().matrix().topRows<3>();
+    const Eigen::Matrix3d Rwc2 = kf2.T_wc().rotation();
+    for (const auto& [i1, i2] : pairs) {
+      const cv::KeyPoint& k1 = kf1.f().keys_un[i1];
+      const cv::KeyPoint& k2 = kf2.f().keys_un[i2];
+      const bool stereo1 = kf1.f().u_right[i1] >= 0, stereo2 = kf2.f().u_right[i2] >= 0;
+      const Eigen::Vector3d x1((k1.pt.x - c.cx) * c.inv_fx, (k1.pt.y - c.cy) * c.inv_fy, 1.0);
+      const Eigen::Vector3d x2((k2.pt.x - c.cx) * c.inv_fx, (k2.pt.y - c.cy) * c.inv_fy, 1.0);
+      const Eigen::Vector3d ray1 = Rwc1 * x1, ray2 = Rwc2 * x2;
+      const double cos_rays = ray1.dot(ray2) / (ray1.norm() * ray2.norm());
+      // Parallax a stereo pair gives at the measured depth: triangulate from
+      // the two views only when they see the point under a wider angle.
+      const double cos_st1 = stereo1 ? std::cos(2 * std::atan2(c.baseline / 2, kf1.f().depth[i1])) : 2.0;
+      const double cos_st2 = stereo2 ? std::cos(2 * std::atan2(c.baseline / 2, kf2.f().depth[i2])) : 2.0;
+      const double cos_st = std::min(cos_st1, cos_st2);
+      Eigen::Vector3d X;
+      if (cos_rays < cos_st && cos_rays > 0 && (stereo1 || stereo2 || cos_rays < 0.9998)) {
+        if (!triangulate(x1, P1, x2, P2, X)) continue;
+      } else if (stereo1 && cos_st1 < cos_st2) {
+        X = kf1.unproject(i1);
+      } else if (stereo2 && cos_st2 < cos_st1) {
+        X = kf2.unproject(i2);
+      } else {
+        continue;  // no parallax
+      }
+      if (!reprojects(kf1, i1, X) || !reprojects(kf2, i2, X)) continue;
+      // Scale consistency: distance ratio agrees with the octave ratio.
+      const double d1 = (X - C1).norm(), d2 = (X - C2).norm();
+      if (d1 == 0 || d2 == 0) continue;
+      const double ratio_dist = d2 / d1;
+      const double ratio_octave = s.scale[k1.octave] / s.scale[k2.octave];
+      if (ratio_dist * ratio_factor < ratio_octave || ratio_dist > ratio_octave * ratio_factor) continue;
+      auto p = std::make_shared<MapPoint>(map_.new_point_id(), X, &kf1, kf1.id);
+      map_.add_observation(kf1, i1, p);
+      map_.add_observation(kf2, i2, p);
+      p->compute_distinctive_descriptor();
+      p->update_normal_and_depth();
+      map_.add_point(p);
+      recent_points_.push_back(p);
+      ++created;
+    }
+    // Let tracking in between neighbours.
+    lk.unlock();
+    lk.lock();
+    if (kf_ptr->erased()) break;
+  }
+  std::lock_guard<std::mutex> c_lk(queue_mutex_);
+  counters_.points_created += created;
+}
+
+void LocalMapper::fuse_with_neighbors(KeyFrame& kf) {
+  const bool mono = sensor_ == Sensor::kMono;
+  const match::Matcher matcher;
+  // First and second neighbours in the covisibility graph.
+  std::vector<KeyFrame*> targets;
+  std::set<const KeyFrame*> seen{&kf};
+  auto visit = [&](KeyFrame* n) {
+    if (!n->erased() && seen.insert(n).second) targets.push_back(n);
+  };
+  for (KeyFrame* n : kf.covisibles(mono ? o_.neighbors_mono : o_.neighbors_stereo)) {
+    visit(n);
+    for (KeyFrame* n2 : n->covisibles(5)) visit(n2);
+  }
+  int fused = 0;
+  std::vector<std::shared_ptr<MapPoint>> own;
+  for (const auto& p : kf.points())
+    if (p && !p->erased()) own.push_back(p);
+  for (KeyFrame* t : targets) fused += matcher.fuse(map_, *t, own);
+
+  std::vector<std::shared_ptr<MapPoint>> candidates;
+  for (KeyFrame* t : targets) {
+    for (const auto& p : t->points()) {
+      if (!p || p->erased() || p->fuse_keyframe == kf.id) continue;
+      p->fuse_keyframe = kf.id;
+      candidates.push_back(p);
+    }
+  }
+  fused += matcher.fuse(map_, kf, candidates);
+
+  for (const auto& p : kf.points()) {
+    if (!p || p->erased()) continue;
+    p->compute_distinctive_descriptor();
+    p->update_normal_and_depth();
+  }
+  kf.update_connections();
+  std::lock_guard<std::mutex> lk(queue_mutex_);
+  counters_.points_fused += fused;
+}
+
+}  // namespace dynaorb::mapping

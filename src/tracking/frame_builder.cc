@@ -1,0 +1,96 @@
+#include "dynaorb/tracking/frame_builder.h"
+
+#include <chrono>
+#include <future>
+#include <opencv2/calib3d.hpp>
+
+#include "dynaorb/features/stereo_matcher.h"
+
+namespace dynaorb::tracking {
+
+namespace {
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+}  // namespace
+
+FrameBuilder::FrameBuilder(const Settings& settings, std::shared_ptr<const map::Calibration> calib)
+    : calib_(std::move(calib)), left_(settings.extractor), right_(settings.extractor) {}
+
+std::shared_ptr<map::Features> FrameBuilder::extract(const cv::Mat& grey, const cv::Mat& exclude,
+                                                     StageTimes& t) {
+  auto f = std::make_shared<map::Features>();
+  f->calib = calib_;
+  const auto t0 = Clock::now();
+  left_.extract(grey, exclude, f->keys, f->descriptors);
+  t["extract"] = ms_since(t0);
+  f->u_right.assign(f->keys.size(), -1.0f);
+  f->depth.assign(f->keys.size(), -1.0f);
+  return f;
+}
+
+void FrameBuilder::finish(map::Features& f) const {
+  f.keys_un = f.keys;
+  if (!calib_->dist.empty() && !f.keys.empty()) {
+    std::vector<cv::Point2f> pts, un;
+    pts.reserve(f.keys.size());
+    for (const cv::KeyPoint& k : f.keys) pts.push_back(k.pt);
+    cv::undistortPoints(pts, un, calib_->K, calib_->dist, cv::noArray(), calib_->K);
+    for (size_t i = 0; i < un.size(); ++i) f.keys_un[i].pt = un[i];
+  }
+  f.build_grid();
+}
+
+std::shared_ptr<const map::Features> FrameBuilder::mono(const cv::Mat& grey, const cv::Mat& exclude,
+                                                        StageTimes& t) {
+  auto f = extract(grey, exclude, t);
+  finish(*f);
+  return f;
+}
+
+std::shared_ptr<const map::Features> FrameBuilder::stereo(const cv::Mat& left, const cv::Mat& right,
+                                                          const cv::Mat& exclude, StageTimes& t) {
+  auto f = std::make_shared<map::Features>();
+  f->calib = calib_;
+  std::vector<cv::KeyPoint> keys_r;
+  cv::Mat desc_r;
+  // The right image is extracted on a second thread while this one does the left.
+  const auto t0 = Clock::now();
+  auto right_job = std::async(std::launch::async, [&] { right_.extract(right, cv::Mat(), keys_r, desc_r); });
+  left_.extract(left, exclude, f->keys, f->descriptors);
+  right_job.get();
+  t["extract"] = ms_since(t0);
+
+  const auto t1 = Clock::now();
+  features::StereoMatchOptions opt;
+  opt.bf = calib_->bf;
+  opt.fx = calib_->fx;
+  features::StereoMatches m = features::match_stereo(f->keys, f->descriptors, keys_r, desc_r, left_.pyramid(),
+                                                     right_.pyramid(), left_.scale_factors(), opt);
+  f->u_right = std::move(m.u_right);
+  f->depth = std::move(m.depth);
+  t["stereo_matching"] = ms_since(t1);
+  finish(*f);
+  return f;
+}
+
+std::shared_ptr<const map::Features> FrameBuilder::rgbd(const cv::Mat& grey, const cv::Mat& depth,
+                                                        const cv::Mat& exclude, StageTimes& t) {
+  auto f = extract(grey, exclude, t);
+  finish(*f);
+  // Depth at the detected (distorted) pixel; the virtual right coordinate
+  // from the undistorted one (ORB-SLAM2's ComputeStereoFromRGBD).
+  for (size_t i = 0; i < f->keys.size(); ++i) {
+    const int u = cvRound(f->keys[i].pt.x), v = cvRound(f->keys[i].pt.y);
+    if (u < 0 || v < 0 || u >= depth.cols || v >= depth.rows) continue;
+    const float d = depth.at<float>(v, u);
+    if (d > 0) {
+      f->depth[i] = d;
+      f->u_right[i] = static_cast<float>(f->keys_un[i].pt.x - calib_->bf / d);
+    }
+  }
+  return f;
+}
+
+}  // namespace dynaorb::tracking

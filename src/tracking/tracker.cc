@@ -1,0 +1,304 @@
+#include "dynaorb/tracking/tracker.h"
+
+#include <algorithm>
+#include <map>
+#include <unordered_map>
+
+#include "dynaorb/optimize/pose_optimizer.h"
+
+namespace dynaorb::tracking {
+
+using map::Frame;
+using map::KeyFrame;
+using map::MapPoint;
+
+Tracker::Tracker(map::Map& map, mapping::LocalMapper& mapper, Sensor sensor, const TrackerOptions& options)
+    : map_(map), mapper_(mapper), sensor_(sensor), o_(options) {}
+
+void Tracker::reset() {
+  initialized_ = false;
+  last_ok_ = false;
+  has_velocity_ = false;
+  last_ = Frame();
+  reference_.reset();
+  last_keyframe_frame_ = -1;
+  local_keyframes_.clear();
+  local_points_.clear();
+  temporal_points_.clear();
+}
+
+TrackOutcome Tracker::track(Frame& f) {
+  TrackOutcome out;
+  std::lock_guard<std::mutex> lk(map_.mutex());
+  if (!initialized_) {
+    out.ok = out.initialized = initialize(f);
+    out.method = "init";
+    if (out.ok) {
+      out.new_keyframe = true;
+      out.keyframe = reference_;
+    }
+    return out;
+  }
+  update_last_frame();
+  bool ok = false;
+  if (last_ok_ && has_velocity_) {
+    ok = track_motion_model(f);
+    out.method = "motion_model";
+  }
+  if (!ok) {
+    ok = track_reference_keyframe(f);
+    out.method = "reference_keyframe";
+  }
+  if (ok) ok = track_local_map(f);
+  if (!ok) {
+    out.method = "lost";
+    last_ok_ = false;
+    has_velocity_ = false;
+    if (static_cast<int>(map_.keyframe_count()) <= o_.reset_if_lost_below_keyframes) {
+      // Lost right after initialisation: start again from this frame (ORB-SLAM2).
+      map_.clear();
+      reset();
+    }
+    return out;
+  }
+  out.ok = true;
+  out.inliers = inliers_;
+  velocity_ = f.T_cw * last_.T_cw.inverse();
+  has_velocity_ = true;
+  // Visual-odometry matches (points not in the map) do not outlive the frame.
+  for (int i = 0; i < f.size(); ++i)
+    if (f.points[i] && f.points[i]->observation_count() < 1) f.points[i].reset();
+  temporal_points_.clear();
+  if (need_new_keyframe(f)) {
+    out.keyframe = create_keyframe(f);
+    out.new_keyframe = true;
+  }
+  for (int i = 0; i < f.size(); ++i)
+    if (f.points[i] && f.outlier[i]) f.points[i].reset();
+  if (!f.reference) f.reference = reference_;
+  last_ = f;
+  last_T_c_ref_ = f.T_cw * f.reference->T_wc();
+  last_ok_ = true;
+  return out;
+}
+
+bool Tracker::initialize(Frame& f) {
+  int with_depth = 0;
+  for (int i = 0; i < f.size(); ++i)
+    if (f.f().has_depth(i)) ++with_depth;
+  if (sensor_ == Sensor::kMono || f.size() <= o_.min_init_keypoints || with_depth < o_.min_init_depth_points)
+    return false;
+  f.set_pose(Eigen::Isometry3d::Identity());
+  auto kf = std::make_shared<KeyFrame>(map_.new_keyframe_id(), f.id, f.stamp, f.features, f.T_cw);
+  for (int i = 0; i < f.size(); ++i) {
+    if (!f.f().has_depth(i)) continue;
+    auto p = std::make_shared<MapPoint>(map_.new_point_id(), f.unproject(i), kf.get(), kf->id);
+    map_.add_observation(*kf, i, p);
+    p->compute_distinctive_descriptor();
+    p->update_normal_and_depth();
+    map_.add_point(p);
+    f.points[i] = p;
+  }
+  map_.add_keyframe(kf);
+  reference_ = kf;
+  f.reference = kf;
+  local_keyframes_ = {kf};
+  local_points_ = map_.points();
+  last_keyframe_frame_ = f.id;
+  last_ = f;
+  last_T_c_ref_ = Eigen::Isometry3d::Identity();
+  last_ok_ = true;
+  has_velocity_ = false;
+  initialized_ = true;
+  return true;
+}
+
+void Tracker::update_last_frame() {
+  // The last frame follows its reference keyframe, which local BA may have moved.
+  if (last_.reference) last_.T_cw = last_T_c_ref_ * last_.reference->current_T_cw();
+  for (auto& p : last_.points)
+    if (p && p->erased() && p->replaced_by()) p = p->replaced_by();
+  if (sensor_ == Sensor::kMono || last_keyframe_frame_ == last_.id || !last_.features) return;
+  // Stereo / RGB-D: temporary points from the last frame's closest depths so
+  // that the motion model has enough to match (ORB-SLAM2's UpdateLastFrame).
+  std::vector<std::pair<float, int>> by_depth;
+  for (int i = 0; i < last_.size(); ++i)
+    if (last_.f().has_depth(i)) by_depth.emplace_back(last_.f().depth[i], i);
+  std::sort(by_depth.begin(), by_depth.end());
+  int n = 0;
+  for (const auto& [z, i] : by_depth) {
+    const auto& p = last_.points[i];
+    if (!p || p->observation_count() < 1) {
+      auto t = std::make_shared<MapPoint>(-1, last_.unproject(i), nullptr, -1);
+      t->set_descriptor(last_.f().descriptor(i));
+      last_.points[i] = t;
+      last_.outlier[i] = false;
+      temporal_points_.push_back(t);
+    }
+    ++n;
+    if (z > last_.calib().th_depth && n > o_.new_keyframe_close_points) break;
+  }
+}
+
+bool Tracker::track_motion_model(Frame& f) {
+  f.set_pose(velocity_ * last_.T_cw);
+  const double th = sensor_ == Sensor::kMono ? o_.motion_th_mono : o_.motion_th_stereo;
+  std::fill(f.points.begin(), f.points.end(), nullptr);
+  int n = matcher_.search_by_projection(f, last_, th);
+  if (n < o_.min_motion_matches) {
+    std::fill(f.points.begin(), f.points.end(), nullptr);
+    n = matcher_.search_by_projection(f, last_, 2 * th);
+  }
+  if (n < o_.min_motion_matches) return false;
+  optimize_pose(f);
+  return discard_outliers(f) >= o_.min_pose_inliers;
+}
+
+bool Tracker::track_reference_keyframe(Frame& f) {
+  if (!reference_ || reference_->erased()) {
+    if (!last_.reference) return false;
+    reference_ = map_.keyframe(last_.reference->id);
+    if (!reference_) return false;
+  }
+  std::fill(f.points.begin(), f.points.end(), nullptr);
+  const int n = matcher_.search_keyframe(*reference_, f);
+  if (n < o_.min_reference_matches) return false;
+  f.set_pose(last_.T_cw);
+  optimize_pose(f);
+  return discard_outliers(f) >= o_.min_pose_inliers;
+}
+
+int Tracker::optimize_pose(Frame& f) {
+  const map::Calibration& c = f.calib();
+  std::vector<optimize::PoseObservation> obs;
+  std::vector<int> slot;
+  for (int i = 0; i < f.size(); ++i) {
+    if (!f.points[i]) continue;
+    const cv::KeyPoint& k = f.f().keys_un[i];
+    optimize::PoseObservation o;
+    o.point_world = f.points[i]->position();
+    o.obs.uv = {k.pt.x, k.pt.y};
+    o.obs.u_right = f.f().u_right[i];
+    o.obs.inv_sigma2 = c.scale.inv_sigma2[k.octave];
+    obs.push_back(o);
+    slot.push_back(i);
+  }
+  const optimize::PoseOptimizerResult r =
+      optimize::optimize_pose({c.fx, c.fy, c.cx, c.cy, c.bf}, f.T_cw, obs);
+  f.set_pose(r.T_cw);
+  int inliers = 0;
+  for (size_t k = 0; k < slot.size(); ++k) {
+    f.outlier[slot[k]] = !r.inlier[k];
+    if (r.inlier[k] && f.points[slot[k]]->observation_count() > 0) ++inliers;
+  }
+  return inliers;
+}
+
+int Tracker::discard_outliers(Frame& f) {
+  int in_map = 0;
+  for (int i = 0; i < f.size(); ++i) {
+    auto& p = f.points[i];
+    if (!p) continue;
+    if (f.outlier[i]) {
+      p->track.in_view_frame = -1;
+      p->track.last_seen_frame = f.id;
+      p.reset();
+      f.outlier[i] = false;
+    } else if (p->observation_count() > 0) {
+      ++in_map;
+    }
+  }
+  return in_map;
+}
+
+bool Tracker::track_local_map(Frame& f) {
+  update_local_map(f);
+  // Points already matched do not need a search.
+  for (auto& p : f.points) {
+    if (!p) continue;
+    p->increase_visible();
+    p->track.last_seen_frame = f.id;
+    p->track.matched_frame = f.id;
+    p->track.in_view_frame = -1;
+  }
+  int to_match = 0;
+  for (const auto& p : local_points_) {
+    if (p->erased() || p->track.matched_frame == f.id) continue;
+    if (f.in_frustum(*p, 0.5)) {
+      p->increase_visible();
+      ++to_match;
+    }
+  }
+  if (to_match > 0) {
+    const double th = sensor_ == Sensor::kRGBD   ? o_.local_search_th_rgbd
+                      : sensor_ == Sensor::kMono ? o_.local_search_th_mono
+                                                 : o_.local_search_th_stereo;
+    matcher_.search_local_points(f, local_points_, th);
+  }
+  optimize_pose(f);
+  inliers_ = 0;
+  for (int i = 0; i < f.size(); ++i) {
+    const auto& p = f.points[i];
+    if (!p || f.outlier[i]) continue;
+    p->increase_found();
+    if (p->observation_count() > 0) ++inliers_;
+  }
+  return inliers_ >= o_.min_local_map_inliers;
+}
+
+void Tracker::update_local_map(Frame& f) {
+  // Keyframes that observe the frame's points, weighted by how many.
+  std::map<long, std::pair<KeyFrame*, int>> counts;
+  for (int i = 0; i < f.size(); ++i) {
+    const auto& p = f.points[i];
+    if (!p || p->erased() || f.outlier[i]) continue;
+    for (const MapPoint::Observation& o : p->observations()) {
+      auto& entry = counts[o.keyframe->id];
+      entry.first = o.keyframe;
+      ++entry.second;
+    }
+  }
+  if (counts.empty()) return;
+  local_keyframes_.clear();
+  KeyFrame* best = nullptr;
+  int best_n = 0;
+  auto add = [&](KeyFrame* k) {
+    if (!k || k->erased() || k->track_reference_frame == f.id) return false;
+    k->track_reference_frame = f.id;
+    local_keyframes_.push_back(map_.keyframe(k->id));
+    return true;
+  };
+  for (const auto& [id, kn] : counts) {
+    if (kn.second > best_n) {
+      best_n = kn.second;
+      best = kn.first;
+    }
+    add(kn.first);
+  }
+  // Their best covisibles, children and parent (ORB-SLAM's UpdateLocalKeyFrames).
+  const size_t first_ring = local_keyframes_.size();
+  for (size_t i = 0; i < first_ring && static_cast<int>(local_keyframes_.size()) < o_.max_local_keyframes; ++i) {
+    KeyFrame* k = local_keyframes_[i].get();
+    for (KeyFrame* n : k->covisibles(10))
+      if (add(n)) break;
+    for (KeyFrame* ch : k->children())
+      if (add(ch)) break;
+    add(k->parent());
+  }
+  local_keyframes_.erase(std::remove(local_keyframes_.begin(), local_keyframes_.end(), nullptr),
+                         local_keyframes_.end());
+  if (best) {
+    reference_ = map_.keyframe(best->id);
+    f.reference = reference_;
+  }
+  local_points_.clear();
+  for (const auto& k : local_keyframes_) {
+    for (const auto& p : k->points()) {
+      if (!p || p->erased() || p->track.local_map_frame == f.id) continue;
+      p->track.local_map_frame = f.id;
+      local_points_.push_back(p);
+    }
+  }
+}
+
+}  // namespace dynaorb::tracking
