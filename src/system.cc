@@ -138,7 +138,9 @@ struct System::Impl {
       r.state = tracker->initialized() || counters.initializations > 0 ? TrackingState::kLost
                                                                        : TrackingState::kNotInitialized;
       if (r.state == TrackingState::kLost) ++counters.lost;
-      r.message = out.method == "init" ? "not enough keypoints with depth to initialise" : "tracking lost";
+      r.message = out.method == "init" ? "not enough keypoints with depth to initialise"
+                  : frame.size() == 0 ? "tracking lost: no keypoints (textureless or fully masked image)"
+                                      : "tracking lost";
     }
     if (out.keyframe) {
       mapper->insert_keyframe(out.keyframe);

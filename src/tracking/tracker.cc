@@ -18,6 +18,7 @@ Tracker::Tracker(map::Map& map, mapping::LocalMapper& mapper, Sensor sensor, con
 void Tracker::reset() {
   initialized_ = false;
   last_ok_ = false;
+  lost_streak_ = 0;
   has_velocity_ = false;
   last_ = Frame();
   reference_.reset();
@@ -54,7 +55,8 @@ TrackOutcome Tracker::track(Frame& f) {
     out.method = "lost";
     last_ok_ = false;
     has_velocity_ = false;
-    if (static_cast<int>(map_.keyframe_count()) <= o_.reset_if_lost_below_keyframes) {
+    if (++lost_streak_ >= o_.reset_after_lost &&
+        static_cast<int>(map_.keyframe_count()) <= o_.reset_if_lost_below_keyframes) {
       // Lost right after initialisation: start again from this frame (ORB-SLAM2).
       map_.clear();
       reset();
@@ -62,6 +64,7 @@ TrackOutcome Tracker::track(Frame& f) {
     return out;
   }
   out.ok = true;
+  lost_streak_ = 0;
   out.inliers = inliers_;
   velocity_ = f.T_cw * last_.T_cw.inverse();
   has_velocity_ = true;

@@ -37,7 +37,12 @@ struct TrackerOptions {
   int new_keyframe_close_points = 100;  // new keyframe points: all close ones, at least this many
   int max_frames = 30;                // keyframe at least every max_frames (= fps)
   int min_frames = 0;
+  // A map of at most this many keyframes is dropped, and the next frame
+  // initialises a new one, once tracking has been lost for reset_after_lost
+  // frames in a row (ORB-SLAM2 resets at once; one blacked-out frame right
+  // after start-up should not cost the map).
   int reset_if_lost_below_keyframes = 5;
+  int reset_after_lost = 10;
 };
 
 struct TrackOutcome {
@@ -79,6 +84,7 @@ class Tracker {
 
   bool initialized_ = false;
   bool last_ok_ = false;
+  int lost_streak_ = 0;
   map::Frame last_;
   Eigen::Isometry3d last_T_c_ref_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();
