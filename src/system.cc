@@ -133,7 +133,7 @@ struct System::Impl {
       r.state = TrackingState::kOk;
       r.pose = output_pose(frame.T_cw);
       r.tracked_points = out.initialized ? frame.matched_points() : out.inliers;
-      records.push_back({stamp, frame.reference, frame.T_cw * frame.reference->T_wc()});
+      records.push_back({stamp, out.reference, out.T_c_ref});
     } else {
       r.state = tracker->initialized() || counters.initializations > 0 ? TrackingState::kLost
                                                                        : TrackingState::kNotInitialized;

@@ -36,7 +36,7 @@ TrackOutcome Tracker::track(Frame& f) {
     out.method = "init";
     if (out.ok) {
       out.new_keyframe = true;
-      out.keyframe = reference_;
+      out.keyframe = out.reference = reference_;
     }
     return out;
   }
@@ -82,6 +82,8 @@ TrackOutcome Tracker::track(Frame& f) {
   last_ = f;
   last_T_c_ref_ = f.T_cw * f.reference->T_wc();
   last_ok_ = true;
+  out.reference = f.reference;
+  out.T_c_ref = last_T_c_ref_;
   return out;
 }
 

@@ -52,6 +52,10 @@ struct TrackOutcome {
   std::string method;         // "init", "motion_model", "reference_keyframe", "lost"
   int inliers = 0;
   std::shared_ptr<map::KeyFrame> keyframe;  // the new keyframe, for the mapper
+  // When ok: the frame's reference keyframe and its pose relative to it, taken
+  // under the map lock (local BA may move the keyframe right after).
+  std::shared_ptr<map::KeyFrame> reference;
+  Eigen::Isometry3d T_c_ref = Eigen::Isometry3d::Identity();
 };
 
 class Tracker {
