@@ -45,21 +45,9 @@ std::shared_ptr<KeyFrame> Tracker::create_keyframe(Frame& f) {
   if (sensor_ != Sensor::kMono) {
     // New points from the closest depths: every close one, and at least
     // new_keyframe_close_points in all (ORB-SLAM2's CreateNewKeyFrame).
-    std::vector<std::pair<float, int>> by_depth;
-    for (int i = 0; i < f.size(); ++i)
-      if (f.f().has_depth(i)) by_depth.emplace_back(f.f().depth[i], i);
-    std::sort(by_depth.begin(), by_depth.end());
     int n = 0;
-    for (const auto& [z, i] : by_depth) {
-      if (!kf->point(i)) {
-        auto p = std::make_shared<MapPoint>(map_.new_point_id(), f.unproject(i), kf.get(), kf->id);
-        map_.add_observation(*kf, i, p);
-        p->compute_distinctive_descriptor();
-        p->update_normal_and_depth();
-        map_.add_point(p);
-        f.points[i] = p;
-        f.outlier[i] = false;
-      }
+    for (const auto& [z, i] : by_depth(f.f())) {
+      if (!kf->point(i)) new_point(*kf, f, i);
       ++n;
       if (z > f.calib().th_depth && n > o_.new_keyframe_close_points) break;
     }

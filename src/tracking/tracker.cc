@@ -12,6 +12,25 @@ using map::Frame;
 using map::KeyFrame;
 using map::MapPoint;
 
+std::vector<std::pair<float, int>> Tracker::by_depth(const map::Features& f) {
+  std::vector<std::pair<float, int>> out;
+  for (int i = 0; i < f.size(); ++i)
+    if (f.has_depth(i)) out.emplace_back(f.depth[i], i);
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::shared_ptr<MapPoint> Tracker::new_point(KeyFrame& kf, Frame& f, int i) {
+  auto p = std::make_shared<MapPoint>(map_.new_point_id(), f.unproject(i), &kf, kf.id);
+  map_.add_observation(kf, i, p);
+  p->compute_distinctive_descriptor();
+  p->update_normal_and_depth();
+  map_.add_point(p);
+  f.points[i] = p;
+  f.outlier[i] = false;
+  return p;
+}
+
 Tracker::Tracker(map::Map& map, mapping::LocalMapper& mapper, Sensor sensor, const TrackerOptions& options)
     : map_(map), mapper_(mapper), sensor_(sensor), o_(options) {}
 
@@ -96,13 +115,7 @@ bool Tracker::initialize(Frame& f) {
   f.set_pose(Eigen::Isometry3d::Identity());
   auto kf = std::make_shared<KeyFrame>(map_.new_keyframe_id(), f.id, f.stamp, f.features, f.T_cw);
   for (int i = 0; i < f.size(); ++i) {
-    if (!f.f().has_depth(i)) continue;
-    auto p = std::make_shared<MapPoint>(map_.new_point_id(), f.unproject(i), kf.get(), kf->id);
-    map_.add_observation(*kf, i, p);
-    p->compute_distinctive_descriptor();
-    p->update_normal_and_depth();
-    map_.add_point(p);
-    f.points[i] = p;
+    if (f.f().has_depth(i)) new_point(*kf, f, i);
   }
   map_.add_keyframe(kf);
   reference_ = kf;
@@ -126,12 +139,8 @@ void Tracker::update_last_frame() {
   if (sensor_ == Sensor::kMono || last_keyframe_frame_ == last_.id || !last_.features) return;
   // Stereo / RGB-D: temporary points from the last frame's closest depths so
   // that the motion model has enough to match (ORB-SLAM2's UpdateLastFrame).
-  std::vector<std::pair<float, int>> by_depth;
-  for (int i = 0; i < last_.size(); ++i)
-    if (last_.f().has_depth(i)) by_depth.emplace_back(last_.f().depth[i], i);
-  std::sort(by_depth.begin(), by_depth.end());
   int n = 0;
-  for (const auto& [z, i] : by_depth) {
+  for (const auto& [z, i] : by_depth(last_.f())) {
     const auto& p = last_.points[i];
     if (!p || p->observation_count() < 1) {
       auto t = std::make_shared<MapPoint>(-1, last_.unproject(i), nullptr, -1);

@@ -7,6 +7,7 @@
 // and RGB-D initialise the map from the first frame with enough depth.
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "dynaorb/map/frame.h"
@@ -78,6 +79,10 @@ class Tracker {
   int optimize_pose(map::Frame& f);     // returns inliers that are map points
   int discard_outliers(map::Frame& f);  // returns remaining map-point matches
   bool need_new_keyframe(const map::Frame& f) const;
+  // A map point from keypoint i of f (with depth), observed by kf, in the map.
+  std::shared_ptr<map::MapPoint> new_point(map::KeyFrame& kf, map::Frame& f, int i);
+  // (depth, keypoint index) of the keypoints with depth, closest first.
+  static std::vector<std::pair<float, int>> by_depth(const map::Features& f);
   std::shared_ptr<map::KeyFrame> create_keyframe(map::Frame& f);
 
   map::Map& map_;

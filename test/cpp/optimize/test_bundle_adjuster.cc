@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "dynaorb/optimize/bundle_adjuster.h"
+#include "pose_test_util.h"
 
 namespace {
 
@@ -23,31 +24,9 @@ using dynaorb::optimize::BaProblem;
 using dynaorb::optimize::BaResult;
 using dynaorb::optimize::bundle_adjust;
 
-constexpr double kDeg = M_PI / 180.0;
+using namespace dynaorb::test;  // NOLINT: kDeg, perturb, pose errors
 constexpr int kKeyframes = 10;
 constexpr int kFixed = 2;
-
-Eigen::Vector3d random_unit(std::mt19937& rng) {
-  std::normal_distribution<double> g(0, 1);
-  return Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
-}
-
-Eigen::Isometry3d perturb(const Eigen::Isometry3d& T, double shift, double angle,
-                          std::mt19937& rng) {
-  const Eigen::Vector3d center = -(T.rotation().transpose() * T.translation());
-  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
-  out.linear() = Eigen::AngleAxisd(angle, random_unit(rng)).toRotationMatrix() * T.rotation();
-  out.translation() = -out.rotation() * (center + shift * random_unit(rng));
-  return out;
-}
-
-double center_error(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
-  return (a.inverse().translation() - b.inverse().translation()).norm();
-}
-
-double rotation_error_deg(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
-  return Eigen::AngleAxisd(a.rotation() * b.rotation().transpose()).angle() / kDeg;
-}
 
 struct Scene {
   BaProblem truth;    // true poses and points, noisy observations

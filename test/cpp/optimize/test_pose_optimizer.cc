@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "dynaorb/optimize/pose_optimizer.h"
+#include "pose_test_util.h"
 
 namespace {
 
@@ -16,7 +17,7 @@ using dynaorb::optimize::optimize_pose;
 using dynaorb::optimize::PoseObservation;
 using dynaorb::optimize::PoseOptimizerResult;
 
-constexpr double kDeg = M_PI / 180.0;
+using namespace dynaorb::test;  // NOLINT: kDeg, perturb, pose errors
 
 Intrinsics camera() {
   Intrinsics K;
@@ -25,30 +26,6 @@ Intrinsics camera() {
   K.cy = 240;
   K.bf = 40;
   return K;
-}
-
-Eigen::Vector3d random_unit(std::mt19937& rng) {
-  std::normal_distribution<double> g(0, 1);
-  return Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
-}
-
-// T_cw with the rotation turned by `angle` about a random axis and the camera centre moved by
-// `shift` in a random direction.
-Eigen::Isometry3d perturb(const Eigen::Isometry3d& T, double shift, double angle,
-                          std::mt19937& rng) {
-  const Eigen::Vector3d center = -(T.rotation().transpose() * T.translation());
-  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
-  out.linear() = Eigen::AngleAxisd(angle, random_unit(rng)).toRotationMatrix() * T.rotation();
-  out.translation() = -out.rotation() * (center + shift * random_unit(rng));
-  return out;
-}
-
-double center_error(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
-  return (a.inverse().translation() - b.inverse().translation()).norm();
-}
-
-double rotation_error_deg(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
-  return Eigen::AngleAxisd(a.rotation() * b.rotation().transpose()).angle() / kDeg;
 }
 
 struct Scene {
