@@ -215,7 +215,6 @@ int Tracker::discard_outliers(Frame& f) {
     if (!p) continue;
     if (f.outlier[i]) {
       p->track.in_view_frame = -1;
-      p->track.last_seen_frame = f.id;
       p.reset();
       f.outlier[i] = false;
     } else if (p->observation_count() > 0) {
@@ -231,7 +230,6 @@ bool Tracker::track_local_map(Frame& f) {
   for (auto& p : f.points) {
     if (!p) continue;
     p->increase_visible();
-    p->track.last_seen_frame = f.id;
     p->track.matched_frame = f.id;
     p->track.in_view_frame = -1;
   }

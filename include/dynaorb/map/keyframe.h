@@ -62,9 +62,7 @@ class KeyFrame {
   // following the map's corrections (ORB-SLAM's trajectory through the tree).
   Eigen::Isometry3d current_T_cw() const;
   bool not_erase = false;          // protected from culling (loop closing will use it)
-  long local_ba_keyframe = -1;     // scratch of local BA / local map building
-  long fixed_ba_keyframe = -1;
-  long track_reference_frame = -1;
+  long track_reference_frame = -1;  // tracker's scratch: frame whose local map lists this keyframe
 
  private:
   friend class Map;

@@ -66,12 +66,10 @@ class MapPoint {
   struct TrackScratch {
     long in_view_frame = -1;     // frame id for which the projection below is valid
     long matched_frame = -1;     // frame id that already matched this point
-    long last_seen_frame = -1;
     long local_map_frame = -1;   // frame id whose local map already lists this point
     double proj_x = 0, proj_y = 0, proj_xr = 0, view_cos = 0;
     int predicted_level = 0;
   } track;
-  long local_ba_keyframe = -1;   // keyframe id whose local BA included this point
   long fuse_keyframe = -1;       // keyframe id whose fusion last visited this point
 
  private:
