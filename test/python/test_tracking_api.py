@@ -62,3 +62,17 @@ def test_asynchronous_mapping_tracks_the_same_sequence(synth_rgbd):
     system = core().System(provider.default_settings(), "rgbd")
     results = [system.track_frame(f) for f in frames]
     assert all(r.state == "OK" for r in results)
+
+
+def test_textureless_and_tiny_images_degrade_without_a_crash(synth_rgbd):
+    provider, frames = _frames(synth_rgbd)
+    settings = provider.default_settings()
+    system = core().System(settings, "rgbd")
+    black = np.zeros_like(frames[0].image)
+    r = system.track_rgbd(black, frames[0].depth, frames[0].stamp)
+    assert r.state == "NOT_INITIALIZED" and r.keypoints == 0 and "initialise" in r.message
+    tiny = np.zeros((3, 5), np.uint8)
+    r = system.track_rgbd(tiny, np.zeros((3, 5), np.uint16), frames[1].stamp)
+    assert r.rejected == "wrong_size"
+    r = system.track_frame(frames[2])
+    assert r.state == "OK" and r.method == "init"
