@@ -76,9 +76,9 @@ def test_synthetic_rgbd_static_masked_and_unmasked(tmp_path, scenes):
 
 def test_synthetic_stereo_static_masked_and_unmasked(tmp_path, scenes):
     static, masked, unmasked = _synth_runs(tmp_path, scenes, "stereo")
-    # Measured: static 0.0033 m, movers + masks 0.0040 m (1.21x; seeds 1 and
-    # 2 give 1.47x and 1.36x: the masks take 30 % of the texture away),
-    # movers without masks 0.011 m.
+    # Measured: static 0.0039 m, movers + masks 0.0041 m (1.05x; seeds 1 and
+    # 2 give 1.47x and 1.36x: the masks take 30 % of the texture away, the
+    # issue's 1.2x is not met in general), movers without masks 0.0096 m.
     assert static <= 0.01
     assert masked <= 1.5 * static
     assert unmasked["ate"]["rmse"] >= 1.5 * static
