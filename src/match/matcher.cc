@@ -3,6 +3,7 @@
 #include <climits>
 #include <cmath>
 
+#include "dynaorb/map/point_view.h"
 #include "dynaorb/match/hamming.h"
 #include "rotation_histogram.h"
 
@@ -212,16 +213,11 @@ int Matcher::fuse(map::Map& map, KeyFrame& kf, const std::vector<std::shared_ptr
   int fused = 0;
   for (const auto& p : points) {
     if (!p || p->erased() || p->index_in(&kf) >= 0) continue;
-    const Eigen::Vector3d pc = kf.T_cw() * p->position();
-    if (pc.z() <= 0) continue;
-    const Eigen::Vector2d uv = c.project(pc);
-    if (!c.in_image(uv)) continue;
-    const double ur = uv.x() - c.bf / pc.z();
-    const Eigen::Vector3d po = p->position() - center;
-    const double dist = po.norm();
-    if (dist < p->min_distance() || dist > p->max_distance()) continue;
-    if (po.dot(p->normal()) < 0.5 * dist) continue;
-    const int level = c.scale.predict_level(dist, p->max_distance());
+    const std::optional<map::PointView> v = map::view_point(c, kf.T_cw(), center, *p, 0.5);
+    if (!v) continue;
+    const Eigen::Vector2d& uv = v->uv;
+    const double ur = v->u_right;
+    const int level = v->predicted_level;
     const double radius = th * c.scale.scale[level];
     int best = INT_MAX, best_j = -1;
     for (int j : f.in_area(uv.x(), uv.y(), radius)) {
