@@ -4,7 +4,7 @@
 #  2. .venv on Debian's /usr/bin/python3 with --system-site-packages (rospy,
 #     cv_bridge and cv2 come from Debian), numpy pinned to Debian's;
 #  3. the pip packages of requirements.txt and dynaorb itself (editable), redone
-#     only when requirements.txt or pyproject.toml change.
+#     only when requirements.txt, pyproject.toml or setup.py change.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
@@ -29,7 +29,7 @@ fi
 /usr/bin/python3 -c 'import numpy; print("numpy==" + numpy.__version__)' > constraints.txt
 
 stamp=.venv/.dynaorb-pip-stamp
-want=$(cat requirements.txt pyproject.toml constraints.txt | sha256sum | cut -d' ' -f1)
+want=$(cat requirements.txt pyproject.toml setup.py constraints.txt | sha256sum | cut -d' ' -f1)
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
   echo "setup: installing python packages into .venv"
   .venv/bin/pip install -q --disable-pip-version-check -c constraints.txt -r requirements.txt
