@@ -10,6 +10,8 @@ def cmd_run(args) -> int:
 
     stats = run_dataset(RunOptions(kind=args.kind, path=args.path, sensor=args.sensor, config=args.config,
                                    out=args.out, dynamic=args.dynamic, masks=args.masks,
+                                   segment=args.segment, segment_mode=args.segment_mode,
+                                   segment_threads=args.segment_threads, max_mask_age=args.max_mask_age,
                                    progress=not args.quiet,
                                    synchronous_mapping=not args.async_mapping))
     print(summary_line(args.out, stats))
@@ -71,4 +73,56 @@ def cmd_config(args) -> int:
     settings = provider.default_settings()
     settings.save(args.output)
     print(settings.summary())
+    return 0
+
+
+def cmd_models_list(args) -> int:
+    from dynaorb.segmentation import CATALOG, DEFAULT_MODEL, resolve_model
+
+    for name, entry in CATALOG.items():
+        try:
+            where = str(resolve_model(name, args.cache))
+        except FileNotFoundError:
+            where = "not installed"
+        default = " (default)" if name == DEFAULT_MODEL else ""
+        print(f"{name}{default}: {entry.note}\n    {where}")
+    return 0
+
+
+def cmd_models_fetch(args) -> int:
+    from dynaorb.segmentation import fetch
+
+    for m in fetch(args.names, from_dir=args.from_dir, cache=args.cache, force=args.force,
+                   progress=not args.quiet):
+        print(f"{m.name}: {m.model} ({m.backend}; {m.how})")
+    return 0
+
+
+def cmd_segment(args) -> int:
+    from dynaorb.segmentation import Segmenter, resolve_model
+    from dynaorb.segmentation.offline import segment_sequence
+
+    summary = segment_sequence(args.kind, args.path, Segmenter(resolve_model(args.model), threads=args.threads),
+                               args.out, overwrite=args.overwrite, progress=not args.quiet)
+    ms = summary["ms_median"]
+    print(f"{summary.get('segmented', 0)} frames segmented, {summary.get('cached', 0)} already cached, "
+          f"{summary.get('unreadable', 0)} unreadable"
+          + (f"; {ms:.0f} ms/frame median" if ms else "") + f"; labels in {summary['out']}")
+    return 0
+
+
+def cmd_bench(args) -> int:
+    from dynaorb.bench import segmentation
+    from dynaorb.segmentation import cache_dir
+    from dynaorb.synth.textures import default_texture_dir
+
+    data = default_texture_dir()
+    if data is None:
+        raise FileNotFoundError("the shared data folder was not found (set DYNAORB_SHARED)")
+    models = args.models or (data.parent / "models" / "segmentation")
+    if not pathlib.Path(models).is_dir():
+        models = cache_dir()
+    segmentation.run(args.out, str(models), str(data), runs=args.runs,
+                     sequence=tuple(args.sequence) if args.sequence else None, model=args.model)
+    print((pathlib.Path(args.out) / "segmentation.md").read_text())
     return 0

@@ -1,4 +1,4 @@
-"""dynaorb command line: run, eval, synth, demo, config."""
+"""dynaorb command line: run, eval, synth, demo, config, models, segment."""
 from __future__ import annotations
 
 import argparse
@@ -20,7 +20,17 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--config", help="ORB-SLAM2 settings YAML (default: from the dataset's calibration)")
     r.add_argument("--out", default="out/run", help="output folder (default out/run)")
     r.add_argument("--dynamic", default="off", help="dynamic-object front-end preset (default off)")
-    r.add_argument("--masks", help="folder of per-frame masks / label images named like the frames")
+    r.add_argument("--masks", help="folder of per-frame masks / label images named like the frames "
+                                   "(a `dynaorb segment` cache)")
+    r.add_argument("--segment", metavar="MODEL",
+                   help="segment in-process with this model (file or name from `dynaorb models list`); "
+                        "its movable classes are masked")
+    r.add_argument("--segment-mode", choices=["async", "sync"], default="async",
+                   help="async (default): the network runs on its own thread on the newest frame and "
+                        "older masks are propagated by optical flow; sync: every frame waits for its mask")
+    r.add_argument("--segment-threads", type=int, default=2, help="network threads (default 2)")
+    r.add_argument("--max-mask-age", type=int, default=30,
+                   help="frames a propagated mask stays usable (default 30)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--async-mapping", action="store_true",
                    help="run local mapping concurrently as on a live camera (default: each keyframe is "
@@ -56,6 +66,42 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--seed", type=int, default=0)
     d.set_defaults(func=commands.cmd_demo)
 
+    m = sub.add_parser("models", help="segmentation models: list them, fetch them into the cache")
+    msub = m.add_subparsers(dest="models_command", required=True)
+    ml = msub.add_parser("list", help="known models and what is installed")
+    ml.add_argument("--cache", help="model cache (default $DYNAORB_MODEL_CACHE or ~/.cache/dynaorb/models)")
+    ml.set_defaults(func=commands.cmd_models_list)
+    mf = msub.add_parser("fetch", help="download (or copy) the public models, verify, convert")
+    mf.add_argument("names", nargs="*", help="models to fetch (default: all)")
+    mf.add_argument("--from", dest="from_dir", metavar="DIR",
+                    help="install from a local folder holding the files instead of downloading")
+    mf.add_argument("--cache", help="model cache (default $DYNAORB_MODEL_CACHE or ~/.cache/dynaorb/models)")
+    mf.add_argument("--force", action="store_true", help="fetch again even when cached")
+    mf.add_argument("--quiet", action="store_true")
+    mf.set_defaults(func=commands.cmd_models_fetch)
+
+    g = sub.add_parser("segment", help="write label images for a whole sequence (a mask cache for --masks)")
+    g.add_argument("kind", choices=["tum", "kitti", "euroc"])
+    g.add_argument("path")
+    g.add_argument("--model", help="model file or name (default: the default model from the cache)")
+    g.add_argument("--out", required=True, help="folder for the label PNGs and labels.json")
+    g.add_argument("--threads", type=int, default=2)
+    g.add_argument("--overwrite", action="store_true", help="segment frames already in the cache again")
+    g.add_argument("--quiet", action="store_true")
+    g.set_defaults(func=commands.cmd_segment)
+
+    b = sub.add_parser("bench", help="benchmarks (speed as medians; JSON and a Markdown table)")
+    b.add_argument("--suite", choices=["segmentation"], default="segmentation",
+                   help="segmentation: network latency per model, back end and thread count, and SLAM "
+                        "fps without / with synchronous / with asynchronous segmentation")
+    b.add_argument("--out", default="out/bench", help="output folder (default out/bench)")
+    b.add_argument("--runs", type=int, default=10, help="timed runs per model and thread count")
+    b.add_argument("--models", help="folder of models (default ../shared/models/segmentation, else the cache)")
+    b.add_argument("--model", help="model for the SLAM runs (default the dm05 PASCAL model of --models)")
+    b.add_argument("--sequence", nargs=2, metavar=("KIND", "PATH"),
+                   help="sequence for the SLAM runs (default: a synthetic 60-frame RGB-D sequence)")
+    b.set_defaults(func=commands.cmd_bench)
+
     c = sub.add_parser("config", help="write the settings derived from a dataset's calibration")
     c.add_argument("kind", choices=["tum", "kitti", "euroc"])
     c.add_argument("path")
@@ -71,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
                         format="%(levelname)s %(name)s: %(message)s")
     try:
         return args.func(args) or 0
-    except (ValueError, FileNotFoundError) as exc:  # InputError is a ValueError
+    except (ValueError, FileNotFoundError, ConnectionError) as exc:  # InputError is a ValueError
         print(f"dynaorb {args.command}: error: {exc}", file=sys.stderr)
         return 2
 

@@ -3,10 +3,15 @@
 The mask of a frame is the file in the folder with the frame image's name
 (TUM: <stamp>.png, KITTI: %06d.png, EuRoC: <ns>.png). Missing or unreadable
 masks are counted, not fatal: the frame runs without one.
+
+A folder with a labels.json (written by `dynaorb segment`) holds label
+images: the movable classes it names become the mask. Otherwise every
+non-zero pixel is masked (ground-truth dynamic masks, 0/255 masks).
 """
 from __future__ import annotations
 
 import collections
+import json
 import logging
 import pathlib
 
@@ -22,6 +27,17 @@ class MaskFolder:
         if not self.folder.is_dir():
             raise FileNotFoundError(f"{self.folder}: mask folder does not exist")
         self.counts = collections.Counter()
+        self.label_info = None
+        self._movable = None
+        info = self.folder / "labels.json"
+        if info.is_file():
+            try:
+                self.label_info = json.loads(info.read_text())
+                ids = [int(i) for i in self.label_info["movable"]]
+            except (ValueError, KeyError, TypeError) as exc:
+                raise ValueError(f"{info}: not a label description with a 'movable' id list ({exc})") from None
+            self._movable = np.zeros(65536, bool)
+            self._movable[ids] = True
 
     def for_image(self, image_path: str, shape: tuple[int, int]) -> np.ndarray | None:
         path = self.folder / pathlib.Path(image_path).name
@@ -37,4 +53,6 @@ class MaskFolder:
                         path, shape[1], shape[0])
             return None
         self.counts["used"] += 1
+        if self._movable is not None:
+            return np.where(self._movable[mask], np.uint8(255), np.uint8(0))
         return np.ascontiguousarray(mask.astype(np.uint8) if mask.dtype != np.uint16 else mask)

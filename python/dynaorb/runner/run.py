@@ -38,6 +38,12 @@ class RunOptions:
     out: str = "out/run"
     dynamic: str = "off"
     masks: str | None = None
+    # In-process segmentation: a model file or catalog name (see `dynaorb models`);
+    # its movable classes are masked. Exclusive with masks.
+    segment: str | None = None
+    segment_mode: str = "async"
+    segment_threads: int = 2
+    max_mask_age: int = 30
     progress: bool = True
     # Map each keyframe before tracking the next frame: repeatable runs. False
     # runs local mapping concurrently, as a live camera would.
@@ -112,11 +118,33 @@ def _evaluate(provider, stamps, poses, sensor: str, out: pathlib.Path) -> dict:
     return stats
 
 
+def _semantic(opts: RunOptions):
+    """(Segmenter, SemanticMasks) for in-process segmentation, or (None, None)."""
+    if not opts.segment:
+        return None, None
+    if opts.masks:
+        raise ValueError("give either a mask folder (--masks) or a segmentation model (--segment), not both")
+    from dynaorb.segmentation import SemanticMasks, SemanticOptions, Segmenter, resolve_model
+
+    segmenter = Segmenter(resolve_model(opts.segment), threads=opts.segment_threads)
+    return segmenter, SemanticMasks(segmenter, SemanticOptions(mode=opts.segment_mode,
+                                                                max_age_frames=opts.max_mask_age))
+
+
 def run_dataset(opts: RunOptions) -> dict:
     """Runs a sequence; returns the stats also written to OUT/stats.json."""
     _core = core()
     if opts.dynamic not in DYNAMIC_MODES:
         raise ValueError(f"unknown dynamic mode {opts.dynamic!r} (available: {', '.join(DYNAMIC_MODES)})")
+    segmenter, semantic = _semantic(opts)
+    try:
+        return _run(_core, opts, segmenter, semantic)
+    finally:
+        if semantic is not None:
+            semantic.close()
+
+
+def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
     provider = _core.open_dataset(opts.kind, opts.path, opts.sensor)
     for w in provider.warnings:
         log.warning("%s: %s", opts.path, w)
@@ -130,6 +158,7 @@ def run_dataset(opts: RunOptions) -> dict:
     states = collections.Counter()
     methods = collections.Counter()
     per_frame_ms = []
+    mask_ages = []
     frames = range(len(provider))
     if opts.progress:
         from tqdm import tqdm
@@ -144,6 +173,10 @@ def run_dataset(opts: RunOptions) -> dict:
             log.warning("frame %d skipped: %s", i, exc)
             continue
         mask = masks.for_image(frame.image_path, frame.image.shape[:2]) if masks else None
+        if semantic is not None:
+            labels = semantic.labels_for(i, frame.image)
+            mask_ages.append(labels.age)
+            mask = segmenter.movable_mask(labels.labels) if labels.labels is not None else None
         result = system.track_frame(frame, mask)
         if result.rejected != "none":
             log.warning("frame %d (%s) rejected: %s", i, frame.image_path, result.message)
@@ -180,6 +213,10 @@ def run_dataset(opts: RunOptions) -> dict:
         "masks": dict(masks.counts) if masks else None,
         "masks_dropped_by_core": int(counters["masks_dropped"]),
     }
+    if semantic is not None:
+        # mask_age_per_frame: frames since the network saw the labels' image; -1: no labels.
+        stats["segmentation"] = {"model": segmenter.card.name, **semantic.summary(),
+                                 "mask_age_per_frame": mask_ages}
     stats.update(_evaluate(provider, stamps, poses, provider.sensor, out))
     (out / "stats.json").write_text(json.dumps(stats, indent=2))
     return stats

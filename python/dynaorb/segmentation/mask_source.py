@@ -1,0 +1,133 @@
+"""Per-frame semantic labels for the SLAM loop, without ever stalling it.
+
+mode "sync": the network runs on every frame before it is tracked
+(repeatable, slow). mode "async": the network runs on its own thread on the
+newest frame; a frame without a fresh result gets the last labels propagated
+to it by optical flow, and its age (frames since the network saw the image
+the labels come from) is recorded. Labels older than max_age_frames are not
+used: the frame runs geometric-only, which is logged once and counted.
+"""
+from __future__ import annotations
+
+import collections
+import dataclasses
+import logging
+import statistics
+import time
+
+import numpy as np
+
+from dynaorb.segmentation.async_segmenter import AsyncSegmenter
+from dynaorb.segmentation.propagation import FlowPropagator, to_grey
+
+log = logging.getLogger(__name__)
+
+
+@dataclasses.dataclass
+class SemanticOptions:
+    mode: str = "async"          # async | sync
+    max_age_frames: int = 30     # older labels are dropped (about 1 s at 30 Hz)
+    propagate: bool = True       # warp old labels by optical flow (else use them as they are)
+    flow_scale: float = 0.5      # resolution of the flow, relative to the image
+
+    def validate(self) -> "SemanticOptions":
+        if self.mode not in ("async", "sync"):
+            raise ValueError(f"segmentation mode {self.mode!r} is not 'async' or 'sync'")
+        if self.max_age_frames < 0:
+            raise ValueError(f"max_age_frames {self.max_age_frames} is negative")
+        return self
+
+
+@dataclasses.dataclass
+class FrameLabels:
+    labels: np.ndarray | None
+    source: str                  # fresh | propagated | stale | none
+    age: int                     # frames; -1 without labels
+
+
+class SemanticMasks:
+    def __init__(self, segmenter, options: SemanticOptions | None = None):
+        self.segmenter = segmenter
+        self.options = (options or SemanticOptions()).validate()
+        self.propagator = FlowPropagator(self.options.flow_scale) if self.options.propagate else None
+        self.worker = AsyncSegmenter(segmenter) if self.options.mode == "async" else None
+        self.counts = collections.Counter()
+        self.ages: list[int] = []
+        self.inference_ms: list[float] = []
+        self.propagate_ms: list[float] = []
+        self.sync_failures = 0
+        self._seen_result = -1               # frame index of the last network result taken
+        self._prev: tuple[np.ndarray, np.ndarray] | None = None   # labels, grey of the previous frame
+        self._source_index = -1              # frame the previous labels come from
+        self._stale_logged = False
+
+    def labels_for(self, index: int, image: np.ndarray) -> FrameLabels:
+        out = self._sync(image) if self.worker is None else self._async(index, image)
+        self.counts[out.source] += 1
+        if out.labels is not None:
+            self.ages.append(out.age)
+        return out
+
+    def _sync(self, image: np.ndarray) -> FrameLabels:
+        try:
+            seg = self.segmenter.segment(image)
+        except Exception as exc:  # the network must never take SLAM down
+            self.sync_failures += 1
+            if self.sync_failures == 1:
+                log.warning("segmentation failed (%s: %s); SLAM continues geometric-only "
+                            "(further failures are counted only)", type(exc).__name__, exc)
+            return FrameLabels(None, "none", -1)
+        self.inference_ms.append(seg.inference_ms)
+        return FrameLabels(seg.labels, "fresh", 0)
+
+    def _warp(self, labels, src_grey, dst_grey):
+        if self.propagator is None or src_grey is dst_grey:
+            return labels
+        t = time.perf_counter()
+        out = self.propagator.warp(labels, src_grey, dst_grey)
+        self.propagate_ms.append((time.perf_counter() - t) * 1e3)
+        return out
+
+    def _async(self, index: int, image: np.ndarray) -> FrameLabels:
+        self.worker.submit(index, image)
+        grey = to_grey(image)
+        result = self.worker.latest()
+        if result is not None and result.index > self._seen_result:
+            # A new network result: start from it (it may be a few frames old).
+            self._seen_result = result.index
+            self.inference_ms.append(result.inference_ms)
+            src_labels, src_grey, self._source_index = result.labels, result.grey, result.index
+        elif self._prev is not None:
+            src_labels, src_grey = self._prev
+        else:  # no result yet, or the last one is too old
+            return FrameLabels(None, "stale" if self._source_index >= 0 else "none", -1)
+        age = index - self._source_index
+        if age > self.options.max_age_frames:
+            if not self._stale_logged:
+                self._stale_logged = True
+                log.warning("segmentation is %d frames behind (limit %d): SLAM continues geometric-only "
+                            "until a fresh mask arrives (counted as 'stale')", age, self.options.max_age_frames)
+            self._prev = None
+            return FrameLabels(None, "stale", -1)
+        if src_grey.shape != grey.shape:
+            self._prev = None
+            return FrameLabels(None, "none", -1)
+        labels = src_labels if age == 0 else self._warp(src_labels, src_grey, grey)
+        self._prev = (labels, grey)
+        return FrameLabels(labels, "fresh" if age == 0 else "propagated", age)
+
+    def close(self) -> None:
+        if self.worker is not None:
+            self.worker.close()
+
+    def summary(self) -> dict:
+        med = lambda v: statistics.median(v) if v else None  # noqa: E731
+        s = {"mode": self.options.mode, "frames": dict(self.counts),
+             "age_median": med(self.ages), "age_max": max(self.ages) if self.ages else None,
+             "inference_ms_median": med(self.inference_ms), "propagate_ms_median": med(self.propagate_ms),
+             "failures": self.sync_failures}
+        if self.worker is not None:
+            s.update(submitted=self.worker.submitted, segmented=self.worker.processed,
+                     dropped_unseen=self.worker.dropped, failures=self.worker.failures,
+                     last_error=self.worker.last_error)
+        return s

@@ -1,0 +1,66 @@
+"""`dynaorb segment`: label images for a whole sequence, as a mask cache.
+
+Writes OUT/<frame image name> (8-bit PNG, pixel = class id) for every frame,
+and OUT/labels.json naming the label set and its movable classes, so that
+`dynaorb run --masks OUT` knows the PNGs are labels (DynaSLAM's mask folder,
+with the label meaning kept beside it). Frames already in the cache are kept
+unless overwrite is set; unreadable frames are counted and skipped.
+"""
+from __future__ import annotations
+
+import collections
+import json
+import logging
+import pathlib
+import statistics
+
+import cv2
+
+from dynaorb.segmentation.segmenter import Segmenter
+
+log = logging.getLogger(__name__)
+
+LABELS_FILE = "labels.json"
+
+
+def write_label_info(out: pathlib.Path, segmenter: Segmenter) -> None:
+    card = segmenter.card
+    info = {"model": card.name, "model_file": str(segmenter.path), "labels": card.labels,
+            "movable": card.movable}
+    (out / LABELS_FILE).write_text(json.dumps(info, indent=2) + "\n")
+
+
+def segment_sequence(kind: str, path: str, segmenter: Segmenter, out: str | pathlib.Path,
+                     overwrite: bool = False, progress: bool = True) -> dict:
+    from dynaorb import core
+
+    _core = core()
+    provider = _core.open_dataset(kind, path, None)
+    out = pathlib.Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_label_info(out, segmenter)
+    counts = collections.Counter()
+    ms = []
+    frames = range(len(provider))
+    if progress:
+        from tqdm import tqdm
+
+        frames = tqdm(frames, desc=f"segmenting {pathlib.Path(path).name}", unit="frame")
+    for i in frames:
+        try:
+            frame = provider.load(i)
+        except _core.InputError as exc:
+            counts["unreadable"] += 1
+            log.warning("frame %d skipped: %s", i, exc)
+            continue
+        target = out / pathlib.Path(frame.image_path).name
+        if target.is_file() and not overwrite:
+            counts["cached"] += 1
+            continue
+        seg = segmenter.segment(frame.image)
+        if not cv2.imwrite(str(target), seg.labels):
+            raise OSError(f"{target}: cannot write the label image")
+        ms.append(seg.total_ms)
+        counts["segmented"] += 1
+    return {"frames": len(provider), **counts, "ms_median": statistics.median(ms) if ms else None,
+            "out": str(out), "model": segmenter.card.name}
