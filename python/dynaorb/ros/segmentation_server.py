@@ -1,0 +1,102 @@
+"""segmentation_server: semantic labels for the SLAM node, as a service and a topic.
+
+Service     segment (dynaorb/Segment): image in; mono8 label image (header of
+            the request), class names and movable class ids out.
+Topic mode  subscribes image (sensor_msgs/Image) and publishes labels (mono8,
+            same header) from a worker thread that always takes the newest
+            image: a slow network drops frames here, never in the SLAM node,
+            which propagates the last labels it got.
+Parameters  ~model (file or catalog name, default the default model),
+            ~threads (2), ~mode (service | topic | both, default both).
+            ~labels and ~movable_ids are set once the model is loaded.
+"""
+from __future__ import annotations
+
+import threading
+
+import rospy
+from cv_bridge import CvBridge, CvBridgeError
+from sensor_msgs.msg import Image
+
+from dynaorb.segmentation import Segmenter, resolve_model
+from dynaorb.srv import Segment, SegmentResponse
+
+
+class SegmentationServer:
+    def __init__(self):
+        model = rospy.get_param("~model", "") or None
+        threads = int(rospy.get_param("~threads", 2))
+        mode = rospy.get_param("~mode", "both")
+        if mode not in ("service", "topic", "both"):
+            raise ValueError(f"~mode {mode!r} is not service, topic or both")
+        self.segmenter = Segmenter(resolve_model(model), threads=threads)
+        card = self.segmenter.card
+        rospy.set_param("~labels", list(card.labels))
+        rospy.set_param("~movable_ids", list(card.movable))
+        self.bridge = CvBridge()
+        self.net_lock = threading.Lock()   # one network, shared by the service and the topic worker
+        self.cv = threading.Condition()
+        self.pending: Image | None = None
+        self.dropped = self.published = self.failures = 0
+        if mode in ("service", "both"):
+            self.srv = rospy.Service("segment", Segment, self.on_segment)
+        if mode in ("topic", "both"):
+            self.pub = rospy.Publisher("labels", Image, queue_size=2)
+            self.sub = rospy.Subscriber("image", Image, self.on_image, queue_size=1, buff_size=1 << 24)
+            threading.Thread(target=self.worker, name="segmentation", daemon=True).start()
+        rospy.loginfo("segmentation_server: %s (%s, %d threads), mode %s; movable: %s", card.name,
+                      self.segmenter.path, threads, mode, ", ".join(card.movable_names))
+
+    def labels_msg(self, msg: Image):
+        """(label Image with msg's header, inference ms); ValueError on an image it cannot read."""
+        try:
+            image = self.bridge.imgmsg_to_cv2(msg, desired_encoding="bgr8")
+        except CvBridgeError as exc:
+            raise ValueError(f"cannot read a {msg.width}x{msg.height} '{msg.encoding}' image: {exc}") from None
+        with self.net_lock:
+            seg = self.segmenter.segment(image)
+        out = self.bridge.cv2_to_imgmsg(seg.labels, encoding="mono8")
+        out.header = msg.header
+        return out, seg.inference_ms
+
+    def on_segment(self, req):
+        try:
+            labels, ms = self.labels_msg(req.image)
+        except ValueError as exc:
+            raise rospy.ServiceException(f"segment: {exc}") from None
+        card = self.segmenter.card
+        return SegmentResponse(labels=labels, class_names=list(card.labels), movable_ids=list(card.movable),
+                               inference_ms=ms)
+
+    def on_image(self, msg: Image) -> None:
+        with self.cv:
+            if self.pending is not None:
+                self.dropped += 1
+            self.pending = msg
+            self.cv.notify()
+
+    def worker(self) -> None:
+        while not rospy.is_shutdown():
+            with self.cv:
+                if not self.cv.wait_for(lambda: self.pending is not None, timeout=0.5):
+                    continue
+                msg, self.pending = self.pending, None
+            try:
+                labels, _ = self.labels_msg(msg)
+            except Exception as exc:  # keep serving: log once per 10 s, count all
+                self.failures += 1
+                rospy.logwarn_throttle(10.0, f"segmentation_server: frame skipped ({exc}); "
+                                             f"{self.failures} failures so far")
+                continue
+            self.pub.publish(labels)
+            self.published += 1
+
+
+def main() -> None:
+    rospy.init_node("segmentation_server")
+    try:
+        SegmentationServer()
+    except (ValueError, FileNotFoundError) as exc:
+        rospy.logfatal("segmentation_server: %s", exc)
+        raise SystemExit(1)
+    rospy.spin()

@@ -1,0 +1,79 @@
+#!/usr/bin/env python3
+"""rostest: segmentation_server labels a real TUM frame through its service and its topic."""
+import sys
+import threading
+import time
+import unittest
+
+import cv2
+import numpy as np
+import rospy
+import rostest
+from cv_bridge import CvBridge
+from sensor_msgs.msg import Image
+
+from dynaorb.srv import Segment
+
+PERSON = 15  # PASCAL VOC
+
+
+class SegmentationServerTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node("test_segmentation_server")
+        cls.bridge = CvBridge()
+        cls.image = cv2.imread(rospy.get_param("~image"))
+        assert cls.image is not None
+
+    def image_msg(self, stamp: float, encoding: str = "bgr8") -> Image:
+        img = self.image if encoding == "bgr8" else cv2.cvtColor(self.image, cv2.COLOR_BGR2RGB)
+        msg = self.bridge.cv2_to_imgmsg(img, encoding=encoding)
+        msg.header.stamp = rospy.Time.from_sec(stamp)
+        msg.header.frame_id = "camera_rgb_optical_frame"
+        return msg
+
+    def check_labels(self, labels: Image, stamp: float) -> None:
+        self.assertEqual(labels.encoding, "mono8")
+        self.assertEqual((labels.height, labels.width), self.image.shape[:2])
+        self.assertAlmostEqual(labels.header.stamp.to_sec(), stamp, places=6)
+        self.assertEqual(labels.header.frame_id, "camera_rgb_optical_frame")
+        ids = self.bridge.imgmsg_to_cv2(labels)
+        # Two people fill about a fifth of this frame.
+        self.assertGreater(np.mean(ids == PERSON), 0.10)
+
+    def test_service(self):
+        rospy.wait_for_service("segment", timeout=60)
+        segment = rospy.ServiceProxy("segment", Segment)
+        for encoding in ("bgr8", "rgb8"):
+            res = segment(self.image_msg(1341846313.592026, encoding))
+            self.check_labels(res.labels, 1341846313.592026)
+            self.assertEqual(len(res.class_names), 21)
+            self.assertEqual(res.class_names[PERSON], "person")
+            self.assertIn(PERSON, list(bytearray(res.movable_ids)))
+        bad = Image(height=2, width=2, encoding="32FC1", step=8, data=bytes(16))
+        with self.assertRaises(rospy.ServiceException):
+            segment(bad)
+
+    def test_topic(self):
+        got = []
+        done = threading.Event()
+
+        def on_labels(msg):
+            got.append(msg)
+            done.set()
+
+        rospy.Subscriber("labels", Image, on_labels)
+        pub = rospy.Publisher("image", Image, queue_size=1)
+        deadline = time.time() + 60
+        while pub.get_num_connections() == 0 and time.time() < deadline:
+            time.sleep(0.05)
+        stamp = 1341846313.5
+        while not done.is_set() and time.time() < deadline:
+            pub.publish(self.image_msg(stamp))
+            done.wait(1.0)
+        self.assertTrue(got, "no labels published")
+        self.check_labels(got[0], stamp)
+
+
+if __name__ == "__main__":
+    rostest.rosrun("dynaorb", "segmentation_server_test", SegmentationServerTest, sys.argv)
