@@ -1,0 +1,1 @@
+"""Benchmarks: speed measured as medians, written as JSON and a Markdown table."""
