@@ -28,7 +28,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--segment-mode", choices=["async", "sync"], default="async",
                    help="async (default): the network runs on its own thread on the newest frame and "
                         "older masks are propagated by optical flow; sync: every frame waits for its mask")
-    r.add_argument("--segment-threads", type=int, default=2, help="network threads (default 2)")
+    r.add_argument("--segment-threads", type=int, default=1,
+                   help="network threads (default 1: the tracking thread keeps a core)")
     r.add_argument("--max-mask-age", type=int, default=30,
                    help="frames a propagated mask stays usable (default 30)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -42,7 +42,7 @@ class RunOptions:
     # its movable classes are masked. Exclusive with masks.
     segment: str | None = None
     segment_mode: str = "async"
-    segment_threads: int = 2
+    segment_threads: int = 1     # leaves the other core of a 2-core machine to tracking
     max_mask_age: int = 30
     progress: bool = True
     # Map each keyframe before tracking the next frame: repeatable runs. False
