@@ -47,6 +47,18 @@ class Matcher {
                                                             const map::KeyFrame& kf2,
                                                             const Eigen::Matrix3d& F12) const;
 
+  // Monocular initialisation (ORB-SLAM2's SearchForInitialization): each
+  // level-0 keypoint i of f1 against the level-0 keypoints of f2 in a square
+  // window of half-size `window` around prev_matched[i] (where it was last
+  // matched; initially its own position): best <= th_low and < nn_ratio *
+  // second best, a keypoint of f2 claimed twice goes to the later claim (as
+  // ORB-SLAM2), then the orientation check. matches12[i]: index in f2 or -1;
+  // prev_matched is moved to the new matches. Returns the number of matches.
+  int search_for_initialization(const map::Features& f1, const map::Features& f2,
+                                std::vector<Eigen::Vector2d>& prev_matched,
+                                std::vector<int>& matches12, double window = 100.0,
+                                double nn_ratio = 0.9) const;
+
   // Projects points into kf: where the keypoint already has a point, the one
   // with fewer observations is replaced by the other; otherwise the point
   // gains the observation. Returns the number of fused points.
