@@ -138,7 +138,9 @@ struct System::Impl {
       r.state = tracker->initialized() || counters.initializations > 0 ? TrackingState::kLost
                                                                        : TrackingState::kNotInitialized;
       if (r.state == TrackingState::kLost) ++counters.lost;
-      r.message = out.method == "init" ? "not enough keypoints with depth to initialise"
+      r.message = out.method == "init" ? (sensor == Sensor::kMono
+                                              ? "monocular initialisation: waiting for two views with enough matches and parallax"
+                                              : "not enough keypoints with depth to initialise")
                   : frame.size() == 0 ? "tracking lost: no keypoints (textureless or fully masked image)"
                                       : "tracking lost";
     }
@@ -217,18 +219,11 @@ struct System::Impl {
     tracking::StageTimes t;
     std::shared_ptr<const map::Features> f;
     switch (sensor) {
-      case Sensor::kMono: f = builder->mono(grey, exclusion(), t); break;
+      case Sensor::kMono: f = builder->mono(grey, exclusion(), t, !tracker->initialized()); break;
       case Sensor::kStereo: f = builder->stereo(grey, grey_right, exclusion(), t); break;
       case Sensor::kRGBD: f = builder->rgbd(grey, depth_m, exclusion(), t); break;
     }
     r.stage_ms.insert(t.begin(), t.end());
-    if (sensor == Sensor::kMono) {
-      // Monocular initialisation (two-view geometry) is SLAM core II.
-      r.keypoints = f->size();
-      r.state = state = TrackingState::kNotInitialized;
-      r.message = "monocular tracking is not available in this build";
-      return r;
-    }
     track_features(std::move(f), stamp, r);
     state = r.state;
     if (r.state == TrackingState::kOk) ++counters.tracked;

@@ -13,17 +13,23 @@ using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
+ExtractorSettings doubled(ExtractorSettings s) {
+  s.n_features *= 2;
+  return s;
+}
 }  // namespace
 
 FrameBuilder::FrameBuilder(const Settings& settings, std::shared_ptr<const map::Calibration> calib)
-    : calib_(std::move(calib)), left_(settings.extractor), right_(settings.extractor) {}
+    : calib_(std::move(calib)), left_(settings.extractor), right_(settings.extractor),
+      init_(doubled(settings.extractor)) {}
 
-std::shared_ptr<map::Features> FrameBuilder::extract(const cv::Mat& grey, const cv::Mat& exclude,
+std::shared_ptr<map::Features> FrameBuilder::extract(features::OrbExtractor& extractor,
+                                                     const cv::Mat& grey, const cv::Mat& exclude,
                                                      StageTimes& t) {
   auto f = std::make_shared<map::Features>();
   f->calib = calib_;
   const auto t0 = Clock::now();
-  left_.extract(grey, exclude, f->keys, f->descriptors);
+  extractor.extract(grey, exclude, f->keys, f->descriptors);
   t["extract"] = ms_since(t0);
   f->u_right.assign(f->keys.size(), -1.0f);
   f->depth.assign(f->keys.size(), -1.0f);
@@ -43,8 +49,8 @@ void FrameBuilder::finish(map::Features& f) const {
 }
 
 std::shared_ptr<const map::Features> FrameBuilder::mono(const cv::Mat& grey, const cv::Mat& exclude,
-                                                        StageTimes& t) {
-  auto f = extract(grey, exclude, t);
+                                                        StageTimes& t, bool initializing) {
+  auto f = extract(initializing ? init_ : left_, grey, exclude, t);
   finish(*f);
   return f;
 }
@@ -77,7 +83,7 @@ std::shared_ptr<const map::Features> FrameBuilder::stereo(const cv::Mat& left, c
 
 std::shared_ptr<const map::Features> FrameBuilder::rgbd(const cv::Mat& grey, const cv::Mat& depth,
                                                         const cv::Mat& exclude, StageTimes& t) {
-  auto f = extract(grey, exclude, t);
+  auto f = extract(left_, grey, exclude, t);
   finish(*f);
   // Depth at the detected (distorted) pixel; the virtual right coordinate
   // from the undistorted one (ORB-SLAM2's ComputeStereoFromRGBD).

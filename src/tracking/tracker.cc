@@ -45,6 +45,8 @@ void Tracker::reset() {
   local_keyframes_.clear();
   local_points_.clear();
   temporal_points_.clear();
+  init_reference_ = Frame();
+  init_prev_matched_.clear();
 }
 
 TrackOutcome Tracker::track(Frame& f) {
@@ -110,8 +112,8 @@ bool Tracker::initialize(Frame& f) {
   int with_depth = 0;
   for (int i = 0; i < f.size(); ++i)
     if (f.f().has_depth(i)) ++with_depth;
-  if (sensor_ == Sensor::kMono || f.size() <= o_.min_init_keypoints || with_depth < o_.min_init_depth_points)
-    return false;
+  if (sensor_ == Sensor::kMono) return initialize_mono(f);
+  if (f.size() <= o_.min_init_keypoints || with_depth < o_.min_init_depth_points) return false;
   f.set_pose(Eigen::Isometry3d::Identity());
   auto kf = std::make_shared<KeyFrame>(map_.new_keyframe_id(), f.id, f.stamp, f.features, f.T_cw);
   for (int i = 0; i < f.size(); ++i) {

@@ -20,7 +20,10 @@ class FrameBuilder {
 
   // grey: CV_8UC1 tracked image; exclude: empty or CV_8UC1, non-zero pixels
   // get no keypoints. depth: CV_32F metres, 0 = no measurement.
-  std::shared_ptr<const map::Features> mono(const cv::Mat& grey, const cv::Mat& exclude, StageTimes& t);
+  // initializing: while a monocular map is being initialised, twice the
+  // features (ORB-SLAM2's mpIniORBextractor), for enough two-view matches.
+  std::shared_ptr<const map::Features> mono(const cv::Mat& grey, const cv::Mat& exclude, StageTimes& t,
+                                            bool initializing = false);
   std::shared_ptr<const map::Features> stereo(const cv::Mat& left, const cv::Mat& right,
                                               const cv::Mat& exclude, StageTimes& t);
   std::shared_ptr<const map::Features> rgbd(const cv::Mat& grey, const cv::Mat& depth,
@@ -29,11 +32,12 @@ class FrameBuilder {
   const std::shared_ptr<const map::Calibration>& calib() const { return calib_; }
 
  private:
-  std::shared_ptr<map::Features> extract(const cv::Mat& grey, const cv::Mat& exclude, StageTimes& t);
+  std::shared_ptr<map::Features> extract(features::OrbExtractor& extractor, const cv::Mat& grey,
+                                         const cv::Mat& exclude, StageTimes& t);
   void finish(map::Features& f) const;  // undistortion and grid
 
   std::shared_ptr<const map::Calibration> calib_;
-  features::OrbExtractor left_, right_;
+  features::OrbExtractor left_, right_, init_;
 };
 
 }  // namespace dynaorb::tracking

@@ -4,7 +4,8 @@
 // back to matching against the reference keyframe; then the local map
 // (points of covisible keyframes) projected and matched; motion-only BA with
 // outlier rejection after each step; ORB-SLAM2's keyframe decision. Stereo
-// and RGB-D initialise the map from the first frame with enough depth.
+// and RGB-D initialise the map from the first frame with enough depth;
+// monocular from two views (ORB-SLAM Sec. IV, mono_initialization.cc).
 #include <memory>
 #include <string>
 #include <utility>
@@ -14,6 +15,7 @@
 #include "dynaorb/map/map.h"
 #include "dynaorb/mapping/local_mapper.h"
 #include "dynaorb/match/matcher.h"
+#include "dynaorb/tracking/two_view_initializer.h"
 
 namespace dynaorb::tracking {
 
@@ -44,6 +46,14 @@ struct TrackerOptions {
   // after start-up should not cost the map).
   int reset_if_lost_below_keyframes = 5;
   int reset_after_lost = 10;
+  // Monocular initialisation (ORB-SLAM2's MonocularInitialization).
+  int mono_init_min_keypoints = 100;  // reference and current frame: more keypoints than this
+  double mono_init_window = 100.0;    // SearchForInitialization window, pixels
+  double mono_init_nn_ratio = 0.9;    // best / second best descriptor distance
+  int mono_init_min_matches = 100;    // fewer: the current frame becomes the new reference
+  int mono_init_ba_iterations = 20;   // global BA of the two keyframes and their points
+  int mono_init_min_tracked = 100;    // points of the second keyframe after BA, else reset
+  TwoViewOptions two_view;            // H / F model selection and reconstruction
 };
 
 struct TrackOutcome {
@@ -71,6 +81,9 @@ class Tracker {
 
  private:
   bool initialize(map::Frame& f);
+  bool initialize_mono(map::Frame& f);  // mono_initialization.cc
+  bool create_initial_map_mono(map::Frame& f, const std::vector<TwoViewMatch>& matches,
+                               const TwoViewResult& two_view);
   bool track_motion_model(map::Frame& f);
   bool track_reference_keyframe(map::Frame& f);
   bool track_local_map(map::Frame& f);
@@ -104,6 +117,10 @@ class Tracker {
   std::vector<std::shared_ptr<map::KeyFrame>> local_keyframes_;
   std::vector<std::shared_ptr<map::MapPoint>> local_points_;
   std::vector<std::shared_ptr<map::MapPoint>> temporal_points_;  // last frame's visual-odometry points
+  // Monocular initialisation: the reference frame (no features: none yet) and
+  // where its keypoints were last matched.
+  map::Frame init_reference_;
+  std::vector<Eigen::Vector2d> init_prev_matched_;
 };
 
 }  // namespace dynaorb::tracking

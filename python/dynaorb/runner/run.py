@@ -158,6 +158,7 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
     states = collections.Counter()
     methods = collections.Counter()
     per_frame_ms = []
+    ok_frames = []  # frame indices tracked (state OK)
     mask_ages = []
     frames = range(len(provider))
     if opts.progress:
@@ -181,6 +182,8 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
         if result.rejected != "none":
             log.warning("frame %d (%s) rejected: %s", i, frame.image_path, result.message)
         states[result.state] += 1
+        if result.state == "OK":
+            ok_frames.append(i)
         methods[result.method or "rejected"] += 1
         per_frame_ms.append(dict(result.stage_ms))
     wall = time.perf_counter() - start
@@ -201,6 +204,11 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
         "frames_rejected": counters["rejected_by_reason"],
         "tracked_frames": int(counters["tracked"]),
         "tracked_fraction": counters["tracked"] / max(len(provider), 1),
+        # The first frame tracked (for monocular: the initialisation frame) and
+        # the share of the frames from there on that were tracked.
+        "init_frame": ok_frames[0] if ok_frames else None,
+        "tracked_fraction_after_init": (len(ok_frames) / (len(provider) - ok_frames[0])
+                                        if ok_frames else 0.0),
         "states": dict(states),
         "tracking_methods": dict(methods),
         "lost_frames": int(counters["lost"]),
