@@ -46,7 +46,7 @@ Sequence load(int n) {
 }
 
 const Sequence& sequence() {
-  static const Sequence s = load(12);
+  static const Sequence s = load(6);
   return s;
 }
 
@@ -94,7 +94,7 @@ TEST(SearchForInitialization, ConsecutiveImagesGiveConsistentLevelZeroMatches) {
 TEST(SearchForInitialization, WindowFollowsTheMatchesOverFrames) {
   DYNAORB_REQUIRE_SHARED();
   const Sequence& s = sequence();
-  ASSERT_GE(s.frames.size(), 12u);
+  ASSERT_GE(s.frames.size(), 6u);
   const match::Matcher matcher;
   std::vector<Eigen::Vector2d> prev;
   std::vector<int> m12;
@@ -102,7 +102,8 @@ TEST(SearchForInitialization, WindowFollowsTheMatchesOverFrames) {
   // As during initialisation: the same reference against each later frame.
   for (size_t k = 1; k < s.frames.size(); ++k)
     n = matcher.search_for_initialization(*s.frames[0], *s.frames[k], prev, m12, 100.0, 0.9);
-  EXPECT_GE(n, 100) << "reference still matched after 11 frames";
+  // Measured: 171 matches to the fifth frame (206 to the first).
+  EXPECT_GE(n, 130) << "reference still matched after 5 frames";
   // A frame against itself: every level-0 keypoint finds itself (or an identical twin).
   std::vector<Eigen::Vector2d> self_prev;
   const map::Features& f = *s.frames[0];
