@@ -92,6 +92,7 @@ void Map::erase_keyframe(const std::shared_ptr<KeyFrame>& kf) {
   kf->ordered_.clear();
   kf->erased_ = true;
   keyframes_.erase(kf->id);
+  if (observer_) observer_->keyframe_erased(*kf);
 }
 
 std::shared_ptr<KeyFrame> Map::keyframe(long id) const {
@@ -133,6 +134,7 @@ void Map::clear() {
   }
   points_.clear();
   keyframes_.clear();
+  if (observer_) observer_->map_cleared();
   next_keyframe_id_ = 0;
   next_point_id_ = 0;
 }

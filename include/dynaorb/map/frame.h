@@ -5,6 +5,7 @@
 #include <memory>
 #include <vector>
 
+#include "dynaorb/map/bag_of_words.h"
 #include "dynaorb/map/features.h"
 #include "dynaorb/map/keyframe.h"
 #include "dynaorb/map/map_point.h"
@@ -20,6 +21,7 @@ struct Frame {
   Eigen::Isometry3d T_cw = Eigen::Isometry3d::Identity();
   bool has_pose = false;
   std::shared_ptr<KeyFrame> reference;
+  std::shared_ptr<const BagOfWords> bow;          // null until tracking needs it
 
   Frame() = default;
   Frame(long id_, double stamp_, std::shared_ptr<const Features> f)

@@ -9,6 +9,7 @@
 #include <set>
 #include <vector>
 
+#include "dynaorb/map/bag_of_words.h"
 #include "dynaorb/map/features.h"
 
 namespace dynaorb::map {
@@ -44,6 +45,13 @@ class KeyFrame {
   // World point from a keypoint with depth (stereo / RGB-D).
   Eigen::Vector3d unproject(int i) const;
 
+  // Bag of words, null until computed (local mapping on insertion, or
+  // tracking when it needs it first); set once, then read-only.
+  const std::shared_ptr<const BagOfWords>& bow() const { return bow_; }
+  void set_bow(std::shared_ptr<const BagOfWords> bow) {
+    if (!bow_) bow_ = std::move(bow);
+  }
+
   // Covisibility graph (weights recomputed from shared observations).
   void update_connections(int min_weight = 15);
   void erase_connection(KeyFrame* kf);
@@ -68,6 +76,7 @@ class KeyFrame {
   friend class Map;
   Eigen::Isometry3d T_cw_;
   std::vector<std::shared_ptr<MapPoint>> points_;
+  std::shared_ptr<const BagOfWords> bow_;
   std::map<KeyFrame*, int> weights_;
   std::vector<std::pair<int, KeyFrame*>> ordered_;  // (weight, kf) descending
   KeyFrame* parent_ = nullptr;

@@ -16,9 +16,22 @@
 
 namespace dynaorb::map {
 
+// Told, with the map's mutex held, when keyframes leave the map: one culled,
+// or all of them on clear(). Indices over keyframes (the keyframe database)
+// stay in step through it.
+class MapObserver {
+ public:
+  virtual ~MapObserver() = default;
+  virtual void keyframe_erased(const KeyFrame& kf) = 0;
+  virtual void map_cleared() = 0;
+};
+
 class Map {
  public:
   std::mutex& mutex() const { return mutex_; }
+
+  // Non-owning; null detaches. Set and reset with the mutex held.
+  void set_observer(MapObserver* observer) { observer_ = observer; }
 
   long new_keyframe_id() { return next_keyframe_id_++; }
   long new_point_id() { return next_point_id_++; }
@@ -50,6 +63,7 @@ class Map {
 
  private:
   mutable std::mutex mutex_;
+  MapObserver* observer_ = nullptr;
   std::map<long, std::shared_ptr<KeyFrame>> keyframes_;
   std::map<long, std::shared_ptr<MapPoint>> points_;
   long next_keyframe_id_ = 0;
