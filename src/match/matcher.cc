@@ -2,6 +2,9 @@
 
 #include <climits>
 #include <cmath>
+#include <stdexcept>
+#include <string>
+#include <unordered_set>
 
 #include "dynaorb/map/point_view.h"
 #include "dynaorb/match/hamming.h"
@@ -148,6 +151,93 @@ int Matcher::search_keyframe(const KeyFrame& kf, Frame& cur, double nn_ratio) co
       }
     }
   }
+  return n;
+}
+
+int Matcher::search_by_bow(const KeyFrame& kf, Frame& cur, double nn_ratio) const {
+  if (!kf.bow() || !cur.bow)
+    throw std::invalid_argument("Matcher::search_by_bow: keyframe " + std::to_string(kf.id) + " and frame " +
+                                std::to_string(cur.id) + " both need a bag of words");
+  const map::Features& fk = kf.f();
+  const map::Features& fc = cur.f();
+  const vocab::FeatureVector& vk = kf.bow()->nodes;
+  const vocab::FeatureVector& vc = cur.bow->nodes;
+  RotationHistogram hist(o_.histogram_bins);
+  int n = 0;
+  // Walk both direct indices in node order; compare only under a shared node.
+  auto ik = vk.begin();
+  auto ic = vc.begin();
+  while (ik != vk.end() && ic != vc.end()) {
+    if (ik->first < ic->first) {
+      ik = vk.lower_bound(ic->first);
+      continue;
+    }
+    if (ic->first < ik->first) {
+      ic = vc.lower_bound(ik->first);
+      continue;
+    }
+    for (const unsigned i : ik->second) {
+      const auto& p = kf.point(static_cast<int>(i));
+      if (!p || p->erased()) continue;
+      int best = INT_MAX, second = INT_MAX, best_j = -1;
+      for (const unsigned j : ic->second) {
+        if (cur.points[j]) continue;
+        const int d = hamming(fk.descriptor(static_cast<int>(i)), fc.descriptor(static_cast<int>(j)));
+        if (d < best) {
+          second = best;
+          best = d;
+          best_j = static_cast<int>(j);
+        } else if (d < second) {
+          second = d;
+        }
+      }
+      if (best_j < 0 || best > o_.th_low || best >= nn_ratio * second) continue;
+      cur.points[best_j] = p;
+      cur.outlier[best_j] = false;
+      ++n;
+      if (o_.check_orientation) hist.add(best_j, fk.keys_un[i].angle, fc.keys_un[best_j].angle);
+    }
+    ++ik;
+    ++ic;
+  }
+  if (o_.check_orientation) drop_rejected(cur, hist, n);
+  return n;
+}
+
+int Matcher::search_by_projection(Frame& cur, const KeyFrame& kf, double th, int max_distance) const {
+  const map::Calibration& c = cur.calib();
+  const map::Features& fc = cur.f();
+  const map::Features& fk = kf.f();
+  const Eigen::Vector3d center = cur.center();
+  std::unordered_set<const MapPoint*> found;
+  for (const auto& p : cur.points)
+    if (p) found.insert(p.get());
+  RotationHistogram hist(o_.histogram_bins);
+  int n = 0;
+  for (int i = 0; i < fk.size(); ++i) {
+    const auto& p = kf.point(i);
+    if (!p || p->erased() || found.count(p.get())) continue;
+    // Any viewing angle (ORB-SLAM checks none here).
+    const std::optional<map::PointView> v = map::view_point(c, cur.T_cw, center, *p, -2.0);
+    if (!v) continue;
+    const int level = v->predicted_level;
+    const double radius = th * c.scale.scale[level];
+    int best = INT_MAX, best_j = -1;
+    for (int j : fc.in_area(v->uv.x(), v->uv.y(), radius, std::max(0, level - 1), level + 1)) {
+      if (cur.points[j]) continue;
+      const int d = hamming(p->descriptor_data(), fc.descriptor(j));
+      if (d < best) {
+        best = d;
+        best_j = j;
+      }
+    }
+    if (best_j < 0 || best > max_distance) continue;
+    cur.points[best_j] = p;
+    cur.outlier[best_j] = false;
+    ++n;
+    if (o_.check_orientation) hist.add(best_j, fk.keys_un[i].angle, fc.keys_un[best_j].angle);
+  }
+  if (o_.check_orientation) drop_rejected(cur, hist, n);
   return n;
 }
 

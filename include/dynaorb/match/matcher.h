@@ -40,6 +40,20 @@ class Matcher {
   // nn_ratio * second best), then the orientation check.
   int search_keyframe(const map::KeyFrame& kf, map::Frame& cur, double nn_ratio = 0.7) const;
 
+  // Reference keyframe / relocalisation with a vocabulary (ORB-SLAM's
+  // SearchByBoW): each map point of kf against the keypoints of cur under the
+  // same direct-index node only; best below th_low and below nn_ratio *
+  // second best, then the orientation check. Both bags of words must be set
+  // (std::invalid_argument otherwise); slots of cur already holding a point
+  // are skipped.
+  int search_by_bow(const map::KeyFrame& kf, map::Frame& cur, double nn_ratio = 0.7) const;
+
+  // Relocalisation (ORB-SLAM's SearchByProjection from a keyframe): projects
+  // the map points of kf that cur has not matched yet with cur's pose, within
+  // th * scale of the predicted level (levels predicted -1 .. +1), best
+  // descriptor distance at most max_distance, then the orientation check.
+  int search_by_projection(map::Frame& cur, const map::KeyFrame& kf, double th, int max_distance) const;
+
   // Pairs of unmatched keypoints of kf1 / kf2 whose descriptors agree and
   // whose kf2 keypoint lies on the epipolar line of the kf1 one (F12 maps kf1
   // pixels to kf2 lines), for triangulation.
