@@ -78,6 +78,7 @@ struct System::Impl {
 
   // The core, built at the first accepted frame (its size fixes the calibration).
   map::Map map;
+  std::unique_ptr<place::KeyFrameDatabase> database;  // with a vocabulary; outlives the mapper thread
   std::unique_ptr<mapping::LocalMapper> mapper;
   std::unique_ptr<tracking::FrameBuilder> builder;
   std::unique_ptr<tracking::Tracker> tracker;
@@ -90,6 +91,8 @@ struct System::Impl {
 
   Impl(const Settings& s, Sensor k, const SystemOptions& o) : settings(s), sensor(k), options(o) {
     settings.validate(sensor);
+    if (options.vocabulary && options.vocabulary->empty())
+      throw InputError("the vocabulary is empty (load or train one, or pass none)");
     if (settings.camera.width > 0 && settings.camera.height > 0)
       expected_size = {settings.camera.width, settings.camera.height};
     const StereoRectification& q = settings.rectification;
@@ -109,10 +112,13 @@ struct System::Impl {
     if (tracker) return;
     auto calib = map::Calibration::make(settings, sensor, size.width, size.height);
     builder = std::make_unique<tracking::FrameBuilder>(settings, calib);
-    mapper = std::make_unique<mapping::LocalMapper>(map, sensor, options.mapping);
+    if (options.vocabulary)
+      database = std::make_unique<place::KeyFrameDatabase>(map, options.vocabulary, options.database);
+    mapper = std::make_unique<mapping::LocalMapper>(map, sensor, options.mapping, options.vocabulary,
+                                                    database.get());
     tracking::TrackerOptions t = options.tracker;
     if (settings.camera.fps > 0) t.max_frames = static_cast<int>(std::lround(settings.camera.fps));
-    tracker = std::make_unique<tracking::Tracker>(map, *mapper, sensor, t);
+    tracker = std::make_unique<tracking::Tracker>(map, *mapper, sensor, t, options.vocabulary, database.get());
   }
 
   // Output pose of the input camera in the world of the first input camera.
@@ -128,7 +134,9 @@ struct System::Impl {
     r.stage_ms["tracking"] = ms_since(t0);
     r.method = out.method;
     r.new_keyframe = out.new_keyframe;
+    if (out.relocalization_ms >= 0) r.stage_ms["relocalization"] = out.relocalization_ms;
     if (out.initialized) ++counters.initializations;
+    if (out.ok && out.method == "relocalization") ++counters.relocalizations;
     if (out.ok) {
       r.state = TrackingState::kOk;
       r.pose = output_pose(frame.T_cw);

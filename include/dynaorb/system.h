@@ -12,7 +12,9 @@
 #include "dynaorb/core/sensor.h"
 #include "dynaorb/io/settings.h"
 #include "dynaorb/mapping/local_mapper.h"
+#include "dynaorb/place/keyframe_database.h"
 #include "dynaorb/tracking/tracker.h"
+#include "dynaorb/vocab/vocabulary.h"
 
 namespace dynaorb {
 
@@ -34,7 +36,8 @@ struct TrackResult {
   std::optional<Pose> pose;                  // T_world_camera when state == kOk
   std::string message;                       // human-readable detail for rejections
   // Per-stage wall time: this frame's (preprocess, extract, stereo_matching,
-  // tracking) and those of the keyframes local mapping finished meanwhile
+  // tracking, and relocalization, part of tracking, when it was tried) and
+  // those of the keyframes local mapping finished meanwhile
   // (local_mapping, triangulation, fuse, local_ba, keyframe_culling).
   std::map<std::string, double> stage_ms;
   int invalid_depth_pixels = 0;              // NaN / zero / negative depth (RGB-D)
@@ -42,7 +45,8 @@ struct TrackResult {
   int keypoints = 0;                         // ORB keypoints extracted (outside the mask)
   int tracked_points = 0;                    // map points matched and inliers
   bool new_keyframe = false;
-  std::string method;                        // init / motion_model / reference_keyframe / lost
+  std::string method;                        // init / motion_model / reference_keyframe /
+                                             // relocalization / lost
 };
 
 struct SystemOptions {
@@ -52,6 +56,13 @@ struct SystemOptions {
   bool synchronous_mapping = false;
   tracking::TrackerOptions tracker;        // max_frames defaults to Camera.fps
   mapping::LocalMapperOptions mapping;
+  // A bag-of-words vocabulary (e.g. ORB-SLAM2's ORBvoc.txt, or one trained
+  // with Vocabulary::train): keyframes get bags of words and a keyframe
+  // database, reference-keyframe matching goes through the vocabulary, and
+  // lost frames are relocalised. Null: none of this (brute-force matching,
+  // no relocalisation). Shared read-only; may serve several Systems.
+  std::shared_ptr<const vocab::Vocabulary> vocabulary;
+  place::KeyFrameDatabaseOptions database;
 };
 
 struct MapSummary {
@@ -67,6 +78,7 @@ struct SystemCounters {
   long masks_dropped = 0;   // masks ignored because of a wrong size or type
   long lost = 0;            // frames with state kLost
   long initializations = 0; // map (re)initialisations
+  long relocalizations = 0; // lost frames found again in the map (needs a vocabulary)
   std::map<std::string, long> rejected_by_reason;
 };
 

@@ -14,8 +14,10 @@ double ms_since(Clock::time_point t0) {
 }
 }  // namespace
 
-LocalMapper::LocalMapper(map::Map& map, Sensor sensor, const LocalMapperOptions& options)
-    : map_(map), sensor_(sensor), o_(options), thread_([this] { run(); }) {}
+LocalMapper::LocalMapper(map::Map& map, Sensor sensor, const LocalMapperOptions& options,
+                         std::shared_ptr<const vocab::Vocabulary> vocabulary, place::KeyFrameDatabase* database)
+    : map_(map), sensor_(sensor), o_(options), vocabulary_(std::move(vocabulary)),
+      database_(vocabulary_ ? database : nullptr), thread_([this] { run(); }) {}
 
 LocalMapper::~LocalMapper() {
   {
@@ -106,10 +108,16 @@ void LocalMapper::run() {
 
 void LocalMapper::process(const std::shared_ptr<KeyFrame>& kf, StageTimes& t) {
   auto t0 = Clock::now();
+  // The features are immutable: the bag of words needs no lock (tracking
+  // may have set one already; set_bow keeps the first).
+  std::shared_ptr<const map::BagOfWords> bow;
+  if (vocabulary_) bow = map::BagOfWords::compute(*vocabulary_, kf->f());
   {
     std::lock_guard<std::mutex> lk(map_.mutex());
     if (kf->erased()) return;  // the map was reset meanwhile
+    if (bow) kf->set_bow(bow);
     insert_into_graph(*kf);
+    if (database_) database_->add(*kf);
     cull_recent_points(*kf);
   }
   t["mapping_insert"] = ms_since(t0);

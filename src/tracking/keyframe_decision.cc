@@ -12,6 +12,10 @@ using map::MapPoint;
 bool Tracker::need_new_keyframe(const Frame& f) const {
   const bool mono = sensor_ == Sensor::kMono;
   const int n_kfs = static_cast<int>(map_.keyframe_count());
+  // ORB-SLAM2: not while the pose after a relocalisation settles, unless the map is small.
+  if (o_.reloc.pause_keyframes && last_reloc_frame_ >= 0 && f.id < last_reloc_frame_ + o_.max_frames &&
+      n_kfs > o_.max_frames)
+    return false;
   const int min_obs = n_kfs <= 2 ? 2 : 3;
   const int ref_matches = reference_ ? reference_->tracked_points(min_obs) : 0;
   const bool mapper_idle = mapper_.idle();
@@ -39,6 +43,7 @@ bool Tracker::need_new_keyframe(const Frame& f) const {
 
 std::shared_ptr<KeyFrame> Tracker::create_keyframe(Frame& f) {
   auto kf = std::make_shared<KeyFrame>(map_.new_keyframe_id(), f.id, f.stamp, f.features, f.T_cw);
+  if (f.bow) kf->set_bow(f.bow);  // else local mapping computes it
   // Tracked map points: the mapper adds these observations when it inserts the keyframe.
   for (int i = 0; i < f.size(); ++i)
     if (f.points[i] && !f.outlier[i] && !f.points[i]->erased()) kf->set_point(i, f.points[i]);

@@ -1,6 +1,7 @@
 #include "dynaorb/tracking/tracker.h"
 
 #include <algorithm>
+#include <chrono>
 #include <map>
 #include <unordered_map>
 
@@ -31,8 +32,10 @@ std::shared_ptr<MapPoint> Tracker::new_point(KeyFrame& kf, Frame& f, int i) {
   return p;
 }
 
-Tracker::Tracker(map::Map& map, mapping::LocalMapper& mapper, Sensor sensor, const TrackerOptions& options)
-    : map_(map), mapper_(mapper), sensor_(sensor), o_(options) {}
+Tracker::Tracker(map::Map& map, mapping::LocalMapper& mapper, Sensor sensor, const TrackerOptions& options,
+                 std::shared_ptr<const vocab::Vocabulary> vocabulary, const place::KeyFrameDatabase* database)
+    : map_(map), mapper_(mapper), sensor_(sensor), o_(options), vocabulary_(std::move(vocabulary)),
+      database_(vocabulary_ ? database : nullptr) {}
 
 void Tracker::reset() {
   initialized_ = false;
@@ -42,6 +45,7 @@ void Tracker::reset() {
   last_ = Frame();
   reference_.reset();
   last_keyframe_frame_ = -1;
+  last_reloc_frame_ = -1;
   local_keyframes_.clear();
   local_points_.clear();
   temporal_points_.clear();
@@ -63,20 +67,32 @@ TrackOutcome Tracker::track(Frame& f) {
   }
   update_last_frame();
   bool ok = false;
-  if (last_ok_ && has_velocity_) {
-    ok = track_motion_model(f);
-    out.method = "motion_model";
-  }
-  if (!ok) {
-    ok = track_reference_keyframe(f);
-    out.method = "reference_keyframe";
+  if (!last_ok_ && database_) {
+    // Lost: relocalise against the whole map (ORB-SLAM2 tries nothing else).
+    const auto t0 = std::chrono::steady_clock::now();
+    ok = relocalize(f);
+    out.relocalization_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    out.method = "relocalization";
+  } else {
+    if (last_ok_ && has_velocity_) {
+      ok = track_motion_model(f);
+      out.method = "motion_model";
+    }
+    if (!ok) {
+      ok = track_reference_keyframe(f);
+      out.method = "reference_keyframe";
+    }
   }
   if (ok) ok = track_local_map(f);
   if (!ok) {
     out.method = "lost";
     last_ok_ = false;
     has_velocity_ = false;
-    if (++lost_streak_ >= o_.reset_after_lost &&
+    // Relocalisation (above) failed too: only a small map is given up, and
+    // only after reset_after_lost frames that a new map could start from.
+    if (can_initialize(f)) ++lost_streak_;
+    if (lost_streak_ >= o_.reset_after_lost &&
         static_cast<int>(map_.keyframe_count()) <= o_.reset_if_lost_below_keyframes) {
       // Lost right after initialisation: start again from this frame (ORB-SLAM2).
       map_.clear();
@@ -85,10 +101,12 @@ TrackOutcome Tracker::track(Frame& f) {
     return out;
   }
   out.ok = true;
-  lost_streak_ = 0;
   out.inliers = inliers_;
+  // The motion model needs two consecutive tracked frames: after a loss (or
+  // a relocalisation) the next frame is matched against the reference keyframe.
   velocity_ = f.T_cw * last_.T_cw.inverse();
-  has_velocity_ = true;
+  has_velocity_ = last_ok_ && out.method != "relocalization";
+  lost_streak_ = 0;
   // Visual-odometry matches (points not in the map) do not outlive the frame.
   for (int i = 0; i < f.size(); ++i)
     if (f.points[i] && f.points[i]->observation_count() < 1) f.points[i].reset();
@@ -108,12 +126,18 @@ TrackOutcome Tracker::track(Frame& f) {
   return out;
 }
 
-bool Tracker::initialize(Frame& f) {
+bool Tracker::can_initialize(const Frame& f) const {
+  if (sensor_ == Sensor::kMono) return f.size() > o_.mono_init_min_keypoints;
+  if (f.size() <= o_.min_init_keypoints) return false;
   int with_depth = 0;
   for (int i = 0; i < f.size(); ++i)
     if (f.f().has_depth(i)) ++with_depth;
+  return with_depth >= o_.min_init_depth_points;
+}
+
+bool Tracker::initialize(Frame& f) {
   if (sensor_ == Sensor::kMono) return initialize_mono(f);
-  if (f.size() <= o_.min_init_keypoints || with_depth < o_.min_init_depth_points) return false;
+  if (!can_initialize(f)) return false;
   f.set_pose(Eigen::Isometry3d::Identity());
   auto kf = std::make_shared<KeyFrame>(map_.new_keyframe_id(), f.id, f.stamp, f.features, f.T_cw);
   for (int i = 0; i < f.size(); ++i) {
@@ -138,7 +162,8 @@ void Tracker::update_last_frame() {
   if (last_.reference) last_.T_cw = last_T_c_ref_ * last_.reference->current_T_cw();
   for (auto& p : last_.points)
     if (p && p->erased() && p->replaced_by()) p = p->replaced_by();
-  if (sensor_ == Sensor::kMono || last_keyframe_frame_ == last_.id || !last_.features) return;
+  // Only the motion model (after a tracked frame) uses the points below.
+  if (sensor_ == Sensor::kMono || !last_ok_ || last_keyframe_frame_ == last_.id || !last_.features) return;
   // Stereo / RGB-D: temporary points from the last frame's closest depths so
   // that the motion model has enough to match (ORB-SLAM2's UpdateLastFrame).
   int n = 0;
@@ -177,7 +202,14 @@ bool Tracker::track_reference_keyframe(Frame& f) {
     if (!reference_) return false;
   }
   std::fill(f.points.begin(), f.points.end(), nullptr);
-  const int n = matcher_.search_keyframe(*reference_, f);
+  int n = 0;
+  if (vocabulary_) {
+    compute_bow(f);
+    compute_bow(*reference_);
+    n = matcher_.search_by_bow(*reference_, f, o_.reference_bow_ratio);
+  } else {
+    n = matcher_.search_keyframe(*reference_, f);
+  }
   if (n < o_.min_reference_matches) return false;
   f.set_pose(last_.T_cw);
   optimize_pose(f);
@@ -257,6 +289,10 @@ bool Tracker::track_local_map(Frame& f) {
     p->increase_found();
     if (p->observation_count() > 0) ++inliers_;
   }
+  // Right after a relocalisation, more inliers are needed (ORB-SLAM2).
+  if (last_reloc_frame_ >= 0 && f.id < last_reloc_frame_ + o_.max_frames &&
+      inliers_ < o_.reloc.local_map_inliers)
+    return false;
   return inliers_ >= o_.min_local_map_inliers;
 }
 

@@ -4,6 +4,8 @@
 // the covisibility graph, recent map points are culled, new points are
 // triangulated with covisible keyframes, duplicates are fused, the local
 // window is bundle adjusted (Ceres) and redundant keyframes are culled.
+// With a vocabulary, each keyframe gets its bag of words on insertion and
+// enters the keyframe database (ORB-SLAM2's ProcessNewKeyFrame).
 #include <atomic>
 #include <condition_variable>
 #include <deque>
@@ -15,6 +17,8 @@
 #include <vector>
 
 #include "dynaorb/map/map.h"
+#include "dynaorb/place/keyframe_database.h"
+#include "dynaorb/vocab/vocabulary.h"
 
 namespace dynaorb::mapping {
 
@@ -39,7 +43,10 @@ struct LocalMapperCounters {
 
 class LocalMapper {
  public:
-  LocalMapper(map::Map& map, Sensor sensor, const LocalMapperOptions& options = {});
+  // vocabulary and database may be null (no bags of words, no database).
+  LocalMapper(map::Map& map, Sensor sensor, const LocalMapperOptions& options = {},
+              std::shared_ptr<const vocab::Vocabulary> vocabulary = nullptr,
+              place::KeyFrameDatabase* database = nullptr);
   ~LocalMapper();
   LocalMapper(const LocalMapper&) = delete;
   LocalMapper& operator=(const LocalMapper&) = delete;
@@ -70,6 +77,8 @@ class LocalMapper {
   map::Map& map_;
   const Sensor sensor_;
   const LocalMapperOptions o_;
+  const std::shared_ptr<const vocab::Vocabulary> vocabulary_;
+  place::KeyFrameDatabase* const database_;
   std::vector<std::shared_ptr<map::MapPoint>> recent_points_;
 
   mutable std::mutex queue_mutex_;

@@ -6,6 +6,13 @@
 // outlier rejection after each step; ORB-SLAM2's keyframe decision. Stereo
 // and RGB-D initialise the map from the first frame with enough depth;
 // monocular from two views (ORB-SLAM Sec. IV, mono_initialization.cc).
+//
+// With a vocabulary, reference-keyframe matching compares only keypoints
+// under the same vocabulary node (bag-of-words search), and a lost frame is
+// relocalised (ORB-SLAM Sec. V-C): candidates from the keyframe database,
+// bag-of-words matches, PnP RANSAC, motion-only BA and a projection search.
+// Without one, reference-keyframe matching is brute force and a lost frame
+// is tried against the reference keyframe only.
 #include <memory>
 #include <string>
 #include <utility>
@@ -15,9 +22,39 @@
 #include "dynaorb/map/map.h"
 #include "dynaorb/mapping/local_mapper.h"
 #include "dynaorb/match/matcher.h"
+#include "dynaorb/place/keyframe_database.h"
+#include "dynaorb/place/pnp_ransac.h"
 #include "dynaorb/tracking/two_view_initializer.h"
+#include "dynaorb/vocab/vocabulary.h"
 
 namespace dynaorb::tracking {
+
+// Relocalisation (ORB-SLAM Sec. V-C; ORB-SLAM2's Tracking::Relocalization).
+struct RelocalizationOptions {
+  double bow_ratio = 0.75;          // best / second-best ratio of the bag-of-words search
+                                    //   (ORB-SLAM2's code: 0.75 here, 0.7 for the reference keyframe)
+  int min_bow_matches = 15;         // a candidate keyframe needs this many matches
+  // After the database's candidates, also the keyframe tracking last
+  // referenced (ours: after a short loss the likeliest place, and a
+  // vocabulary trained on few images ranks keyframes a few metres away no
+  // better than unrelated ones).
+  bool try_last_reference = true;
+  place::PnpRansacOptions pnp;      // chi2 5.991 at the level sigma, >= 10 inliers, <= 300 iterations, p = 0.99
+  int min_pose_inliers = 10;        // after motion-only BA, else the next candidate
+  int min_inliers = 50;             // a relocalisation needs this many inliers
+  double wide_window = 10;          // projection search of the candidate's other points (pixels at
+  int wide_max_distance = 100;      //   level 0, ORB distance); then, with more than
+  int narrow_after = 30;            //   narrow_after inliers but fewer than min_inliers,
+  double narrow_window = 3;         //   a narrower search from the better pose
+  int narrow_max_distance = 64;
+  int local_map_inliers = 50;       // local-map inliers needed during max_frames after a
+                                    //   relocalisation (ORB-SLAM2)
+  // ORB-SLAM2 also inserts no keyframe during those max_frames when the map
+  // has more than max_frames keyframes. Off: at KITTI's ~1.2 m per frame the
+  // local map runs out first (KITTI 06 with 5 black frames: relocalised, then
+  // lost for good with it; tracked to the end without).
+  bool pause_keyframes = false;
+};
 
 struct TrackerOptions {
   int min_init_keypoints = 500;       // keypoints to initialise from a frame (ORB-SLAM2: N > 500)
@@ -27,6 +64,7 @@ struct TrackerOptions {
   double motion_th_mono = 15.0;
   int min_motion_matches = 20;        // below: search again with twice the radius
   int min_reference_matches = 15;
+  double reference_bow_ratio = 0.7;   // bag-of-words search against the reference keyframe (ORB-SLAM2)
   int min_pose_inliers = 10;          // after motion-only BA
   int min_local_map_inliers = 30;
   double local_search_th_stereo = 1.0;
@@ -42,8 +80,10 @@ struct TrackerOptions {
   int min_frames = 0;
   // A map of at most this many keyframes is dropped, and the next frame
   // initialises a new one, once tracking has been lost for reset_after_lost
-  // frames in a row (ORB-SLAM2 resets at once; one blacked-out frame right
-  // after start-up should not cost the map).
+  // frames in a row that could have initialised a map (ORB-SLAM2 resets at
+  // once; a blacked-out or textureless frame says nothing about whether the
+  // map is still reachable, and no new map could start from it). Every lost
+  // frame is relocalised first (with a vocabulary); a larger map is never dropped.
   int reset_if_lost_below_keyframes = 5;
   int reset_after_lost = 10;
   // Monocular initialisation (ORB-SLAM2's MonocularInitialization).
@@ -54,24 +94,29 @@ struct TrackerOptions {
   int mono_init_ba_iterations = 20;   // global BA of the two keyframes and their points
   int mono_init_min_tracked = 100;    // points of the second keyframe after BA, else reset
   TwoViewOptions two_view;            // H / F model selection and reconstruction
+  RelocalizationOptions reloc;
 };
 
 struct TrackOutcome {
   bool ok = false;
   bool initialized = false;   // the map was (re)created with this frame
   bool new_keyframe = false;
-  std::string method;         // "init", "motion_model", "reference_keyframe", "lost"
+  std::string method;         // "init", "motion_model", "reference_keyframe", "relocalization", "lost"
   int inliers = 0;
   std::shared_ptr<map::KeyFrame> keyframe;  // the new keyframe, for the mapper
   // When ok: the frame's reference keyframe and its pose relative to it, taken
   // under the map lock (local BA may move the keyframe right after).
   std::shared_ptr<map::KeyFrame> reference;
   Eigen::Isometry3d T_c_ref = Eigen::Isometry3d::Identity();
+  double relocalization_ms = -1;  // time spent relocalising this frame; < 0: not tried
 };
 
 class Tracker {
  public:
-  Tracker(map::Map& map, mapping::LocalMapper& mapper, Sensor sensor, const TrackerOptions& options);
+  // vocabulary and database may be null (no bag of words, no relocalisation).
+  Tracker(map::Map& map, mapping::LocalMapper& mapper, Sensor sensor, const TrackerOptions& options,
+          std::shared_ptr<const vocab::Vocabulary> vocabulary = nullptr,
+          const place::KeyFrameDatabase* database = nullptr);
 
   // Estimates frame.T_cw; takes the map lock for its duration. On a new
   // keyframe the caller hands outcome.keyframe to the local mapper.
@@ -80,6 +125,7 @@ class Tracker {
   bool initialized() const { return initialized_; }
 
  private:
+  bool can_initialize(const map::Frame& f) const;  // enough keypoints and depth for a map
   bool initialize(map::Frame& f);
   bool initialize_mono(map::Frame& f);  // mono_initialization.cc
   bool create_initial_map_mono(map::Frame& f, const std::vector<TwoViewMatch>& matches,
@@ -87,6 +133,12 @@ class Tracker {
   bool track_motion_model(map::Frame& f);
   bool track_reference_keyframe(map::Frame& f);
   bool track_local_map(map::Frame& f);
+  bool relocalize(map::Frame& f);
+  // Relocalisation against one candidate, from f's bag-of-words matches.
+  bool relocalize_from(map::Frame& f, const map::KeyFrame& kf);
+  void compute_bow(map::Frame& f) const;
+  void compute_bow(map::KeyFrame& kf) const;
+  void clear_matches(map::Frame& f) const;
   void update_last_frame();
   void update_local_map(map::Frame& f);
   int optimize_pose(map::Frame& f);     // returns inliers that are map points
@@ -103,16 +155,19 @@ class Tracker {
   const Sensor sensor_;
   const TrackerOptions o_;
   const match::Matcher matcher_;
+  const std::shared_ptr<const vocab::Vocabulary> vocabulary_;
+  const place::KeyFrameDatabase* const database_;
 
   bool initialized_ = false;
   bool last_ok_ = false;
-  int lost_streak_ = 0;
+  int lost_streak_ = 0;  // lost frames in a row that could have initialised a map
   map::Frame last_;
   Eigen::Isometry3d last_T_c_ref_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();
   bool has_velocity_ = false;
   std::shared_ptr<map::KeyFrame> reference_;
   long last_keyframe_frame_ = -1;
+  long last_reloc_frame_ = -1;  // -1: none since the map was made
   int inliers_ = 0;
   std::vector<std::shared_ptr<map::KeyFrame>> local_keyframes_;
   std::vector<std::shared_ptr<map::MapPoint>> local_points_;
