@@ -1,16 +1,22 @@
 // dynaorb._core: the pybind11 module over the core's public API (System,
-// Settings, DataProvider, trajectory files). Images cross as numpy arrays:
-// uint8 HxW / HxWx3, uint16 or float32 HxW depth.
+// Settings, DataProvider, Vocabulary, ORB extraction, trajectory files).
+// Images cross as numpy arrays: uint8 HxW / HxWx3, uint16 or float32 HxW
+// depth; ORB descriptors as (N, 32) uint8.
 #include <pybind11/eigen.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <cstring>
+#include <opencv2/imgproc.hpp>
+
+#include "dynaorb/features/orb_extractor.h"
 #include "dynaorb/io/dataset.h"
 #include "dynaorb/io/errors.h"
 #include "dynaorb/io/settings.h"
 #include "dynaorb/io/trajectory_io.h"
 #include "dynaorb/system.h"
+#include "dynaorb/vocab/vocabulary.h"
 
 namespace py = pybind11;
 using namespace dynaorb;
@@ -84,6 +90,40 @@ Trajectory trajectory_from_numpy(py::array_t<double, py::array::c_style | py::ar
 
 py::object optional_number(const std::optional<double>& v) { return v ? py::cast(*v) : py::none(); }
 
+using VocabularyPtr = std::shared_ptr<vocab::Vocabulary>;
+
+// str or os.PathLike -> path string.
+std::string path_of(const py::object& obj) {
+  return py::module_::import("os").attr("fspath")(obj).cast<std::string>();
+}
+
+// An (N, 32) uint8 array of ORB descriptors, copied into a cv::Mat.
+cv::Mat descriptors_from(const py::handle& obj, const std::string& what) {
+  auto arr = py::array::ensure(obj, py::array::c_style);
+  if (!arr || !arr.dtype().is(py::dtype::of<uint8_t>()) || arr.ndim() != 2 ||
+      (arr.shape(0) > 0 && arr.shape(1) != vocab::Vocabulary::kDescriptorBytes))
+    throw InputError(what + ": expected an (N, 32) uint8 array of ORB descriptors");
+  if (arr.shape(0) == 0) return cv::Mat();
+  return cv::Mat(static_cast<int>(arr.shape(0)), vocab::Vocabulary::kDescriptorBytes, CV_8UC1,
+                 const_cast<void*>(arr.data()))
+      .clone();
+}
+
+vocab::BowVector bow_from(const py::dict& d) {
+  vocab::BowVector b;
+  for (const auto& [k, v] : d) b[k.cast<vocab::WordId>()] = v.cast<double>();
+  return b;
+}
+
+// System's vocabulary argument: None, a Vocabulary, or a path (ORBvoc.txt or binary).
+std::shared_ptr<const vocab::Vocabulary> vocabulary_from(const py::object& obj) {
+  if (obj.is_none()) return nullptr;
+  if (py::isinstance<vocab::Vocabulary>(obj)) return obj.cast<VocabularyPtr>();
+  const std::string path = path_of(obj);
+  py::gil_scoped_release release;
+  return std::make_shared<const vocab::Vocabulary>(vocab::Vocabulary::load_any(path));
+}
+
 }  // namespace
 
 PYBIND11_MODULE(_core, m) {
@@ -152,6 +192,80 @@ PYBIND11_MODULE(_core, m) {
         },
         py::arg("kind"), py::arg("path"), py::arg("sensor") = py::none());
 
+  py::class_<vocab::Vocabulary, VocabularyPtr>(
+      m, "Vocabulary",
+      "Bag-of-binary-words vocabulary for ORB descriptors (DBoW2-style tree, TF-IDF, L1 score).")
+      .def_static(
+          "train",
+          [](const py::list& descriptors, int k, int L, unsigned seed) {
+            std::vector<cv::Mat> mats;
+            for (size_t i = 0; i < descriptors.size(); ++i)
+              mats.push_back(descriptors_from(descriptors[i], "descriptors[" + std::to_string(i) + "]"));
+            py::gil_scoped_release release;
+            return std::make_shared<vocab::Vocabulary>(vocab::Vocabulary::train(mats, k, L, seed));
+          },
+          py::arg("descriptors"), py::arg("k") = 10, py::arg("L") = 6, py::arg("seed") = 0,
+          "Hierarchical k-means++ over a list of (N, 32) uint8 descriptor arrays, one per image.")
+      .def_static(
+          "load",
+          [](const py::object& path) {
+            const std::string p = path_of(path);
+            py::gil_scoped_release release;
+            return std::make_shared<vocab::Vocabulary>(vocab::Vocabulary::load_any(p));
+          },
+          py::arg("path"), "Loads the binary form or ORB-SLAM2's ORBvoc.txt.")
+      .def("save", [](const vocab::Vocabulary& v, const py::object& path) {
+        v.save(path_of(path));
+      }, py::arg("path"), "Writes the binary form.")
+      .def("save_text", [](const vocab::Vocabulary& v, const py::object& path) {
+        v.save_orbvoc_text(path_of(path));
+      }, py::arg("path"), "Writes ORB-SLAM2's ORBvoc.txt format.")
+      .def_property_readonly("size", &vocab::Vocabulary::size, "Number of words.")
+      .def("__len__", &vocab::Vocabulary::size)
+      .def_property_readonly("k", &vocab::Vocabulary::branching)
+      .def_property_readonly("L", &vocab::Vocabulary::depth)
+      .def("transform",
+           [](const vocab::Vocabulary& v, const py::object& descriptors) {
+             const cv::Mat d = descriptors_from(descriptors, "descriptors");
+             vocab::BowVector bow;
+             v.transform(d, bow);
+             return std::map<vocab::WordId, double>(bow.begin(), bow.end());
+           },
+           py::arg("descriptors"), "Bag of words {word: weight} (TF-IDF, L1-normalised).")
+      .def("score", [](const vocab::Vocabulary& v, const py::dict& a, const py::dict& b) {
+        return v.score(bow_from(a), bow_from(b));
+      }, py::arg("a"), py::arg("b"), "L1 score of two bags of words, in [0, 1].");
+
+  m.def(
+      "extract_orb",
+      [](const py::object& image, const Settings& settings) {
+        cv::Mat img = as_mat(image, "image"), grey;
+        if (img.depth() != CV_8U || (img.channels() != 1 && img.channels() != 3))
+          throw InputError("image: expected uint8 HxW or HxWx3");
+        std::vector<cv::KeyPoint> keys;
+        cv::Mat desc;
+        {
+          py::gil_scoped_release release;
+          if (img.channels() == 3) cv::cvtColor(img, grey, settings.camera.rgb ? cv::COLOR_RGB2GRAY : cv::COLOR_BGR2GRAY);
+          else grey = img;
+          features::OrbExtractor(settings.extractor).extract(grey, cv::Mat(), keys, desc);
+        }
+        py::array_t<float> kp({static_cast<py::ssize_t>(keys.size()), py::ssize_t(4)});
+        auto k = kp.mutable_unchecked<2>();
+        for (size_t i = 0; i < keys.size(); ++i) {
+          k(i, 0) = keys[i].pt.x;
+          k(i, 1) = keys[i].pt.y;
+          k(i, 2) = static_cast<float>(keys[i].octave);
+          k(i, 3) = keys[i].angle;
+        }
+        py::array_t<uint8_t> d({static_cast<py::ssize_t>(keys.size()), py::ssize_t(32)});
+        if (!keys.empty()) std::memcpy(d.mutable_data(), desc.data, keys.size() * 32);
+        return py::make_tuple(kp, d);
+      },
+      py::arg("image"), py::arg("settings"),
+      "ORB keypoints (N, 4: x, y, level, angle in degrees) and descriptors (N, 32) uint8 from the "
+      "System's extractor with the settings' ORBextractor parameters (no undistortion).");
+
   py::class_<TrackResult>(m, "TrackResult")
       .def_property_readonly("state", [](const TrackResult& r) { return to_string(r.state); })
       .def_property_readonly("rejected", [](const TrackResult& r) { return to_string(r.rejected); })
@@ -169,13 +283,18 @@ PYBIND11_MODULE(_core, m) {
       .def_readonly("method", &TrackResult::method);
 
   py::class_<System>(m, "System")
-      .def(py::init([](const Settings& s, const std::string& sensor, bool synchronous_mapping) {
+      .def(py::init([](const Settings& s, const std::string& sensor, bool synchronous_mapping,
+                       const py::object& vocabulary) {
              SystemOptions o;
              o.synchronous_mapping = synchronous_mapping;
+             o.vocabulary = vocabulary_from(vocabulary);
              return std::make_unique<System>(s, parse_sensor(sensor), o);
            }),
            py::arg("settings"), py::arg("sensor"), py::arg("synchronous_mapping") = false,
-           "synchronous_mapping: map each keyframe before tracking the next frame (repeatable runs).")
+           py::arg("vocabulary") = py::none(),
+           "synchronous_mapping: map each keyframe before tracking the next frame (repeatable runs).\n"
+           "vocabulary: None, a Vocabulary or a path to one (ORBvoc.txt or binary): bag-of-words\n"
+           "matching, a keyframe database and relocalisation of lost frames.")
       .def("track_mono",
            [](System& s, const py::object& image, double stamp, const py::object& mask) {
              cv::Mat i = as_mat(image, "image"), k = as_mat(mask, "mask");
@@ -221,6 +340,7 @@ PYBIND11_MODULE(_core, m) {
         d["rejected_by_reason"] = c.rejected_by_reason;
         d["lost"] = c.lost;
         d["initializations"] = c.initializations;
+        d["relocalizations"] = c.relocalizations;
         return d;
       })
       .def("map_points", [](const System& s) {
