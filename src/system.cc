@@ -47,6 +47,7 @@ std::string size_text(const cv::Size& s) { return std::to_string(s.width) + "x" 
 // Grey image from an 8-bit grey / 3- or 4-channel image; false when the type is unusable.
 bool to_grey(const cv::Mat& in, bool rgb_order, cv::Mat& grey) {
   if (in.depth() != CV_8U) return false;
+  grey.release();  // it may share an earlier caller's image: convert into a new one
   switch (in.channels()) {
     case 1: grey = in; return true;
     case 3: cv::cvtColor(in, grey, rgb_order ? cv::COLOR_RGB2GRAY : cv::COLOR_BGR2GRAY); return true;
@@ -279,8 +280,10 @@ TrackResult System::track_stereo(const cv::Mat& left, const cv::Mat& right, doub
   if (!to_grey(right, s.settings.camera.rgb, s.grey_right))
     return s.reject(r, RejectReason::kWrongType, "right image must be 8-bit with 1, 3 or 4 channels");
   if (!s.rect_map_l1.empty()) {
-    cv::remap(left_grey, s.grey, s.rect_map_l1, s.rect_map_l2, cv::INTER_LINEAR);
-    cv::Mat rectified_right;
+    // Into a new image: s.grey may still share the caller's left image.
+    cv::Mat rectified_left, rectified_right;
+    cv::remap(left_grey, rectified_left, s.rect_map_l1, s.rect_map_l2, cv::INTER_LINEAR);
+    s.grey = rectified_left;
     cv::remap(s.grey_right, rectified_right, s.rect_map_r1, s.rect_map_r2, cv::INTER_LINEAR);
     s.grey_right = rectified_right;
   } else {

@@ -76,3 +76,21 @@ def test_textureless_and_tiny_images_degrade_without_a_crash(synth_rgbd):
     assert r.rejected == "wrong_size"
     r = system.track_frame(frames[2])
     assert r.state == "OK" and r.method == "init"
+
+
+def test_tracking_leaves_the_callers_images_alone(data):
+    # EuRoC stereo is rectified inside the System: the rectified image used to
+    # be written into the caller's left image.
+    provider = core().open_dataset("euroc", str(data / "euroc" / "V1_01_easy_micro"))
+    system = core().System(provider.default_settings(), "stereo", synchronous_mapping=True)
+    for i in range(3):
+        f = provider.load(i)
+        left, right = f.image, f.right
+        left_copy, right_copy = left.copy(), right.copy()
+        assert system.track_stereo(left, right, f.stamp).state == "OK"
+        assert np.array_equal(left, left_copy) and np.array_equal(right, right_copy)
+    # A frame tracked twice (by two Systems) gives the same result.
+    f = provider.load(0)
+    a = core().System(provider.default_settings(), "stereo").track_frame(f)
+    b = core().System(provider.default_settings(), "stereo").track_frame(f)
+    assert a.state == b.state == "OK" and a.keypoints == b.keypoints
