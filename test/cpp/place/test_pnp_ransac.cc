@@ -57,7 +57,7 @@ TEST(PnpRansac, FindsThePoseAmongHalfOutliers) {
   EXPECT_LE(r.iterations, PnpRansacOptions{}.max_iterations);
 }
 
-TEST(PnpRansac, StopsEarlyWhenMostMatchAreInliers) {
+TEST(PnpRansac, StopsEarlyWhenMostMatchesAreInliers) {
   const PnpRansacResult r = pnp_ransac(scene(100, 0.0, 2).matches, kK);
   ASSERT_TRUE(r.ok);
   EXPECT_LT(r.iterations, 20);
