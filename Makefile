@@ -13,7 +13,7 @@ export ROS_LOG_DIR := $(BUILD)/ros_home/log
 export MPLBACKEND := Agg
 export PATH := $(VENV)/bin:$(PATH)
 
-.PHONY: demo test setup build clean
+.PHONY: demo test setup build vocab clean
 
 setup:
 	@bash scripts/setup.sh
@@ -24,10 +24,15 @@ $(BUILD)/CMakeCache.txt: | setup
 build: setup $(BUILD)/CMakeCache.txt
 	cmake --build $(BUILD) -j$(JOBS)
 
-demo: build
+# dynaorb's own bag-of-words vocabulary, trained on sequences it renders; cached
+# in ~/.cache/dynaorb/vocab (about a minute the first time, nothing afterwards).
+vocab: build
+	$(PY) -m dynaorb vocab default
+
+demo: vocab
 	$(PY) -m dynaorb demo --out $(ROOT)/out/demo
 
-test: build
+test: vocab
 	@mkdir -p $(ROS_LOG_DIR)
 	cd $(BUILD) && ctest --output-on-failure -j$(JOBS)
 	$(PY) -m pytest -q

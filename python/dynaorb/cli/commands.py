@@ -10,6 +10,7 @@ def cmd_run(args) -> int:
 
     stats = run_dataset(RunOptions(kind=args.kind, path=args.path, sensor=args.sensor, config=args.config,
                                    out=args.out, dynamic=args.dynamic, masks=args.masks,
+                                   vocabulary=args.vocabulary,
                                    segment=args.segment, segment_mode=args.segment_mode,
                                    segment_threads=args.segment_threads, max_mask_age=args.max_mask_age,
                                    progress=not args.quiet,
@@ -125,4 +126,25 @@ def cmd_bench(args) -> int:
     segmentation.run(args.out, str(models), str(data), runs=args.runs,
                      sequence=tuple(args.sequence) if args.sequence else None, model=args.model)
     print((pathlib.Path(args.out) / "segmentation.md").read_text())
+    return 0
+
+
+def cmd_vocab_train(args) -> int:
+    import time
+
+    from dynaorb import vocab
+
+    start = time.perf_counter()
+    vocabulary = vocab.train(args.images, k=args.k, L=args.L, seed=args.seed, config=args.config,
+                             max_images=args.max_images, progress=not args.quiet)
+    out = vocab.save(vocabulary, args.output)
+    print(f"{vocabulary.size} words (k={vocabulary.k}, L={vocabulary.L}) in "
+          f"{time.perf_counter() - start:.1f} s -> {out}")
+    return 0
+
+
+def cmd_vocab_default(args) -> int:
+    from dynaorb.vocab import build_default
+
+    print(build_default(force=args.force))
     return 0

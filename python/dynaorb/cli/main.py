@@ -1,4 +1,4 @@
-"""dynaorb command line: run, eval, synth, demo, config, models, segment."""
+"""dynaorb command line: run, eval, synth, demo, config, models, segment, vocab, bench."""
 from __future__ import annotations
 
 import argparse
@@ -22,6 +22,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--dynamic", default="off", help="dynamic-object front-end preset (default off)")
     r.add_argument("--masks", help="folder of per-frame masks / label images named like the frames "
                                    "(a `dynaorb segment` cache)")
+    r.add_argument("--vocabulary", default="default", metavar="FILE|default|none",
+                   help="bag-of-words vocabulary for relocalisation (default: dynaorb's own, built on first "
+                        "use with `dynaorb vocab default`; or a binary / ORBvoc.txt file; none: without)")
     r.add_argument("--segment", metavar="MODEL",
                    help="segment in-process with this model (file or name from `dynaorb models list`); "
                         "its movable classes are masked")
@@ -90,6 +93,24 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--overwrite", action="store_true", help="segment frames already in the cache again")
     g.add_argument("--quiet", action="store_true")
     g.set_defaults(func=commands.cmd_segment)
+
+    v = sub.add_parser("vocab", help="bag-of-words vocabularies: train one, build the default")
+    vsub = v.add_subparsers(dest="vocab_command", required=True)
+    vt = vsub.add_parser("train", help="train a vocabulary on images (files or folders)")
+    vt.add_argument("images", nargs="+", help="image files or folders (searched recursively)")
+    vt.add_argument("-k", type=int, default=10, help="branching factor (default 10)")
+    vt.add_argument("-L", type=int, default=6, help="depth (default 6)")
+    vt.add_argument("-o", "--output", required=True, help="vocabulary file: binary, or ORBvoc text if .txt")
+    vt.add_argument("--seed", type=int, default=0)
+    vt.add_argument("--config", help="settings YAML whose ORBextractor.* parameters are used "
+                                     "(default config/TUM3.yaml: ORB-SLAM2's defaults)")
+    vt.add_argument("--max-images", type=int, help="use at most this many images, spread over all given")
+    vt.add_argument("--quiet", action="store_true")
+    vt.set_defaults(func=commands.cmd_vocab_train)
+    vd = vsub.add_parser("default", help="path of the default vocabulary, trained on rendered sequences "
+                                         "and cached the first time")
+    vd.add_argument("--force", action="store_true", help="train it again")
+    vd.set_defaults(func=commands.cmd_vocab_default)
 
     b = sub.add_parser("bench", help="benchmarks (speed as medians; JSON and a Markdown table)")
     b.add_argument("--suite", choices=["segmentation"], default="segmentation",

@@ -40,6 +40,9 @@ class RunOptions:
     masks: str | None = None
     # In-process segmentation: a model file or catalog name (see `dynaorb models`);
     # its movable classes are masked. Exclusive with masks.
+    # Bag-of-words vocabulary (relocalisation, reference-keyframe matching): "default"
+    # (dynaorb's own, built and cached on first use), "none", or a file (binary or ORBvoc.txt).
+    vocabulary: str | None = "default"
     segment: str | None = None
     segment_mode: str = "async"
     segment_threads: int = 1     # leaves the other core of a 2-core machine to tracking
@@ -131,6 +134,21 @@ def _semantic(opts: RunOptions):
                                                                 max_age_frames=opts.max_mask_age))
 
 
+def _vocabulary(spec: str | None):
+    """A Vocabulary object, or None for spec None / "none"."""
+    if spec in (None, "none"):
+        return None
+    if spec == "default":
+        from dynaorb.vocab import build_default, default_vocabulary_path
+
+        if not default_vocabulary_path().is_file():
+            log.info("building the default vocabulary (once, about a minute): dynaorb vocab default")
+        spec = str(build_default())
+    if not pathlib.Path(spec).is_file():
+        raise FileNotFoundError(f"{spec}: vocabulary file does not exist")
+    return core().Vocabulary.load(spec)
+
+
 def run_dataset(opts: RunOptions) -> dict:
     """Runs a sequence; returns the stats also written to OUT/stats.json."""
     _core = core()
@@ -149,7 +167,8 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
     for w in provider.warnings:
         log.warning("%s: %s", opts.path, w)
     settings = _settings(provider, opts.config)
-    system = _core.System(settings, provider.sensor, synchronous_mapping=opts.synchronous_mapping)
+    system = _core.System(settings, provider.sensor, synchronous_mapping=opts.synchronous_mapping,
+                          vocabulary=_vocabulary(opts.vocabulary))
     masks = MaskFolder(opts.masks) if opts.masks else None
     out = pathlib.Path(opts.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -212,6 +231,8 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
         "states": dict(states),
         "tracking_methods": dict(methods),
         "lost_frames": int(counters["lost"]),
+        "relocalizations": int(counters["relocalizations"]),
+        "vocabulary": opts.vocabulary,
         "initializations": int(counters["initializations"]),
         "map": system.map_summary(),
         "synchronous_mapping": opts.synchronous_mapping,
