@@ -81,6 +81,7 @@ struct System::Impl {
   map::Map map;
   std::unique_ptr<place::KeyFrameDatabase> database;  // with a vocabulary; outlives the mapper thread
   std::unique_ptr<mapping::LocalMapper> mapper;
+  std::unique_ptr<loop::LoopCloser> loop_closer;  // with a vocabulary and loop_closing
   std::unique_ptr<tracking::FrameBuilder> builder;
   std::unique_ptr<tracking::Tracker> tracker;
   cv::Size expected_size;  // from the settings, or from the first accepted frame
@@ -109,6 +110,13 @@ struct System::Impl {
     }
   }
 
+  ~Impl() {
+    // No keyframe reaches the loop closer once the mapper is paused; the loop
+    // closer (and its global BA, which pauses the mapper too) goes before the mapper.
+    if (mapper) mapper->pause();
+    loop_closer.reset();
+  }
+
   void ensure_core(const cv::Size& size) {
     if (tracker) return;
     auto calib = map::Calibration::make(settings, sensor, size.width, size.height);
@@ -117,6 +125,11 @@ struct System::Impl {
       database = std::make_unique<place::KeyFrameDatabase>(map, options.vocabulary, options.database);
     mapper = std::make_unique<mapping::LocalMapper>(map, sensor, options.mapping, options.vocabulary,
                                                     database.get());
+    if (database && options.loop_closing) {
+      loop_closer = std::make_unique<loop::LoopCloser>(map, sensor, *database, *mapper, options.loop);
+      loop::LoopCloser* lc = loop_closer.get();
+      mapper->set_keyframe_sink([lc](std::shared_ptr<map::KeyFrame> kf) { lc->insert_keyframe(std::move(kf)); });
+    }
     tracking::TrackerOptions t = options.tracker;
     if (settings.camera.fps > 0) t.max_frames = static_cast<int>(std::lround(settings.camera.fps));
     tracker = std::make_unique<tracking::Tracker>(map, *mapper, sensor, t, options.vocabulary, database.get());
@@ -155,7 +168,10 @@ struct System::Impl {
     }
     if (out.keyframe) {
       mapper->insert_keyframe(out.keyframe);
-      if (options.synchronous_mapping) mapper->wait_idle();
+      if (options.synchronous_mapping) {
+        mapper->wait_idle();
+        if (loop_closer) loop_closer->wait_idle();
+      }
     }
     for (const auto& times : mapper->take_stage_times())
       for (const auto& [stage, ms] : times) r.stage_ms[stage] += ms;
@@ -241,6 +257,7 @@ struct System::Impl {
 
   void reset() {
     if (mapper) mapper->clear_queue();
+    if (loop_closer) loop_closer->reset();
     {
       std::lock_guard<std::mutex> lk(map.mutex());
       map.clear();
@@ -317,7 +334,15 @@ TrackResult System::track_rgbd(const cv::Mat& image, const cv::Mat& depth, doubl
 
 Sensor System::sensor() const { return impl_->sensor; }
 const Settings& System::settings() const { return impl_->settings; }
-const SystemCounters& System::counters() const { return impl_->counters; }
+const SystemCounters& System::counters() const {
+  SystemCounters& c = impl_->counters;
+  if (impl_->loop_closer) {
+    const loop::LoopCloserCounters l = impl_->loop_closer->counters();
+    c.loops_closed = l.loops_closed;
+    c.global_ba_runs = l.global_ba_runs;
+  }
+  return c;
+}
 Trajectory System::trajectory() const {
   const Impl& s = *impl_;
   Trajectory out;
@@ -346,6 +371,7 @@ MapSummary System::map_summary() const {
     m.points = static_cast<long>(s.map.point_count());
   }
   if (s.mapper) m.mapping = s.mapper->counters();
+  if (s.loop_closer) m.loop = s.loop_closer->counters();
   return m;
 }
 

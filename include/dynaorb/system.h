@@ -11,6 +11,7 @@
 #include "dynaorb/core/pose.h"
 #include "dynaorb/core/sensor.h"
 #include "dynaorb/io/settings.h"
+#include "dynaorb/loop/loop_closer.h"
 #include "dynaorb/mapping/local_mapper.h"
 #include "dynaorb/place/keyframe_database.h"
 #include "dynaorb/tracking/tracker.h"
@@ -63,12 +64,19 @@ struct SystemOptions {
   // no relocalisation). Shared read-only; may serve several Systems.
   std::shared_ptr<const vocab::Vocabulary> vocabulary;
   place::KeyFrameDatabaseOptions database;
+  // Loop closing (ORB-SLAM Sec. VI, dynaorb/loop/loop_closer.h) in its own
+  // thread; needs the vocabulary (without one it is off whatever this says).
+  // With synchronous_mapping, a keyframe's loop step and a global BA it
+  // starts finish before the next frame is tracked (repeatable runs).
+  bool loop_closing = true;
+  loop::LoopCloserOptions loop;
 };
 
 struct MapSummary {
   long keyframes = 0;
   long points = 0;
   mapping::LocalMapperCounters mapping;
+  loop::LoopCloserCounters loop;  // zero without loop closing
 };
 
 struct SystemCounters {
@@ -79,6 +87,8 @@ struct SystemCounters {
   long lost = 0;            // frames with state kLost
   long initializations = 0; // map (re)initialisations
   long relocalizations = 0; // lost frames found again in the map (needs a vocabulary)
+  long loops_closed = 0;    // loops detected and corrected (needs loop closing)
+  long global_ba_runs = 0;  // global bundle adjustments finished after a loop
   std::map<std::string, long> rejected_by_reason;
 };
 

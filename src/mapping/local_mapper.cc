@@ -56,6 +56,26 @@ void LocalMapper::wait_idle() {
   idle_cv_.wait(lk, [this] { return stop_ || (!busy_ && queue_.empty()); });
 }
 
+void LocalMapper::pause() {
+  std::unique_lock<std::mutex> lk(queue_mutex_);
+  ++pause_requests_;
+  abort_ba_ = true;
+  idle_cv_.wait(lk, [this] { return stop_ || !busy_; });
+}
+
+void LocalMapper::resume() {
+  {
+    std::lock_guard<std::mutex> lk(queue_mutex_);
+    if (pause_requests_ > 0) --pause_requests_;
+  }
+  queue_cv_.notify_all();
+}
+
+bool LocalMapper::paused() const {
+  std::lock_guard<std::mutex> lk(queue_mutex_);
+  return pause_requests_ > 0 && !busy_;
+}
+
 void LocalMapper::clear_queue() {
   {
     std::lock_guard<std::mutex> lk(queue_mutex_);
@@ -84,7 +104,7 @@ void LocalMapper::run() {
     std::shared_ptr<KeyFrame> kf;
     {
       std::unique_lock<std::mutex> lk(queue_mutex_);
-      queue_cv_.wait(lk, [this] { return stop_ || !queue_.empty(); });
+      queue_cv_.wait(lk, [this] { return stop_ || (pause_requests_ == 0 && !queue_.empty()); });
       if (stop_) break;
       kf = queue_.front();
       queue_.pop_front();
@@ -95,6 +115,14 @@ void LocalMapper::run() {
     const auto t0 = Clock::now();
     process(kf, t);
     t["local_mapping"] = ms_since(t0);
+    if (sink_) {
+      bool in_map;
+      {
+        std::lock_guard<std::mutex> lk(map_.mutex());
+        in_map = !kf->erased();
+      }
+      if (in_map) sink_(kf);
+    }
     {
       std::lock_guard<std::mutex> lk(queue_mutex_);
       busy_ = false;

@@ -284,17 +284,21 @@ PYBIND11_MODULE(_core, m) {
 
   py::class_<System>(m, "System")
       .def(py::init([](const Settings& s, const std::string& sensor, bool synchronous_mapping,
-                       const py::object& vocabulary) {
+                       const py::object& vocabulary, bool loop_closing, bool global_ba) {
              SystemOptions o;
              o.synchronous_mapping = synchronous_mapping;
              o.vocabulary = vocabulary_from(vocabulary);
+             o.loop_closing = loop_closing;
+             o.loop.global_ba = global_ba;
              return std::make_unique<System>(s, parse_sensor(sensor), o);
            }),
            py::arg("settings"), py::arg("sensor"), py::arg("synchronous_mapping") = false,
-           py::arg("vocabulary") = py::none(),
+           py::arg("vocabulary") = py::none(), py::arg("loop_closing") = true, py::arg("global_ba") = true,
            "synchronous_mapping: map each keyframe before tracking the next frame (repeatable runs).\n"
            "vocabulary: None, a Vocabulary or a path to one (ORBvoc.txt or binary): bag-of-words\n"
-           "matching, a keyframe database and relocalisation of lost frames.")
+           "matching, a keyframe database and relocalisation of lost frames.\n"
+           "loop_closing: detect and correct loops (needs the vocabulary); global_ba: a global\n"
+           "bundle adjustment after each loop correction.")
       .def("track_mono",
            [](System& s, const py::object& image, double stamp, const py::object& mask) {
              cv::Mat i = as_mat(image, "image"), k = as_mat(mask, "mask");
@@ -341,6 +345,8 @@ PYBIND11_MODULE(_core, m) {
         d["lost"] = c.lost;
         d["initializations"] = c.initializations;
         d["relocalizations"] = c.relocalizations;
+        d["loops_closed"] = c.loops_closed;
+        d["global_ba_runs"] = c.global_ba_runs;
         return d;
       })
       .def("map_points", [](const System& s) {
@@ -362,6 +368,17 @@ PYBIND11_MODULE(_core, m) {
         d["keyframes_culled"] = m.mapping.keyframes_culled;
         d["local_ba_runs"] = m.mapping.local_ba_runs;
         d["local_ba_aborted"] = m.mapping.local_ba_aborted;
+        d["loop_keyframes_checked"] = m.loop.keyframes;
+        d["loop_candidates"] = m.loop.candidates;
+        d["loops_closed"] = m.loop.loops_closed;
+        d["global_ba_runs"] = m.loop.global_ba_runs;
+        d["global_ba_aborted"] = m.loop.global_ba_aborted;
+        d["last_loop_keyframe"] = m.loop.last_loop_keyframe;
+        d["last_loop_match"] = m.loop.last_loop_match;
+        d["last_loop_frame"] = m.loop.last_loop_frame;
+        d["last_loop_matches"] = m.loop.last_loop_matches;
+        d["last_loop_correction_ms"] = m.loop.last_correction_ms;
+        d["last_global_ba_ms"] = m.loop.last_global_ba_ms;
         return d;
       })
       .def("trajectory", [](const System& s) { return trajectory_to_numpy(s.trajectory()); })

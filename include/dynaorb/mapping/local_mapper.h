@@ -9,6 +9,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <deque>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -59,6 +60,20 @@ class LocalMapper {
   void wait_idle();               // blocks until the queue is drained
   void clear_queue();             // drops queued keyframes (reset)
 
+  // Loop closing (ORB-SLAM's RequestStop / Release): pause() aborts a running
+  // local BA and blocks until the keyframe being processed is finished; no
+  // keyframe is processed until the matching resume(). Keyframes inserted
+  // meanwhile wait in the queue. Nestable (a count); call without the map's mutex.
+  void pause();
+  void resume();
+  bool paused() const;
+  // Called (from the mapper's thread, without the map's mutex) with each
+  // keyframe once it is processed and still in the map: the loop closer's queue.
+  // Set before the first keyframe is inserted.
+  void set_keyframe_sink(std::function<void(std::shared_ptr<map::KeyFrame>)> sink) {
+    sink_ = std::move(sink);
+  }
+
   LocalMapperCounters counters() const;
   // Stage times of the keyframes processed since the last call.
   std::vector<StageTimes> take_stage_times();
@@ -86,6 +101,8 @@ class LocalMapper {
   std::deque<std::shared_ptr<map::KeyFrame>> queue_;
   bool busy_ = false;
   bool stop_ = false;
+  int pause_requests_ = 0;
+  std::function<void(std::shared_ptr<map::KeyFrame>)> sink_;
   std::atomic<bool> abort_ba_{false};
   LocalMapperCounters counters_;
   std::vector<StageTimes> stage_times_;

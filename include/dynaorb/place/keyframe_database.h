@@ -61,6 +61,15 @@ class KeyFrameDatabase : public map::MapObserver {
   // (ties by keyframe id). Call with the map's mutex held.
   std::vector<PlaceCandidate> relocalization_candidates(const vocab::BowVector& bow) const;
 
+  // Loop candidates for keyframe kf (ORB-SLAM2's DetectLoopCandidates): the
+  // keyframes sharing words with kf that are neither kf nor covisible with it,
+  // sharing more than min_common_words_ratio of the most words shared, with an
+  // L1 score >= min_score; grouped with their best covisibles like the
+  // relocalisation candidates; the best keyframe of each group whose
+  // accumulated score exceeds min_group_score_ratio of the best group's, best
+  // group first. kf's bag of words must be set. Call with the map's mutex held.
+  std::vector<PlaceCandidate> loop_candidates(const map::KeyFrame& kf, double min_score) const;
+
   const vocab::Vocabulary& vocabulary() const { return *vocabulary_; }
 
   // map::MapObserver

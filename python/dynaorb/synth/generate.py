@@ -15,10 +15,11 @@ import pathlib
 import cv2
 import numpy as np
 
-from dynaorb.synth.scene import Renderer, build_scene
+from dynaorb.synth.scene import Renderer, build_loop_scene, build_scene
 from dynaorb.synth.textures import TextureBank, default_texture_dir
 
 SENSORS = ("rgbd", "stereo", "mono")
+PATHS = ("forward", "loop")
 
 
 @dataclasses.dataclass
@@ -36,6 +37,11 @@ class SynthConfig:
     max_depth: float = 12.0         # farther depth is written as 0 (no measurement)
     noise_sigma: float = 1.5        # image noise, grey levels
     textures: str | None = None     # folder of real images; default ../shared/data
+    # "forward": down a long room (CameraPath); "loop": laps of a closed circuit in a closed
+    # room (LoopPath, one lap every lap_period seconds; no movers), for loop closing.
+    path: str = "forward"
+    lap_period: float = 12.0
+    features: int = 1000            # ORBextractor.nFeatures written to settings.yaml
 
     def rate(self) -> float:
         return self.fps or (30.0 if self.sensor == "rgbd" else 20.0)
@@ -55,7 +61,7 @@ def _settings_yaml(c: SynthConfig, K: np.ndarray) -> str:
         lines += [f"Camera.bf: {K[0, 0] * 0.08}", "ThDepth: 40.0", f"DepthMapFactor: {c.depth_factor}"]
     elif c.sensor == "stereo":
         lines += [f"Camera.bf: {K[0, 0] * c.baseline}", "ThDepth: 40.0"]
-    lines += ["ORBextractor.nFeatures: 1000", "ORBextractor.scaleFactor: 1.2", "ORBextractor.nLevels: 8",
+    lines += [f"ORBextractor.nFeatures: {c.features}", "ORBextractor.scaleFactor: 1.2", "ORBextractor.nLevels: 8",
               "ORBextractor.iniThFAST: 20", "ORBextractor.minThFAST: 7"]
     return "\n".join(lines) + "\n"
 
@@ -91,12 +97,19 @@ def generate(out: str | pathlib.Path, config: SynthConfig, progress=None) -> dic
         raise ValueError(f"sensor must be one of {SENSORS}, not {c.sensor!r}")
     if c.frames < 2 or c.movers < 0:
         raise ValueError("need frames >= 2 and movers >= 0")
+    if c.path not in PATHS:
+        raise ValueError(f"path must be one of {PATHS}, not {c.path!r}")
+    if c.path == "loop" and c.movers:
+        raise ValueError("the loop path has no movers (movers=0)")
     out = pathlib.Path(out)
     rng = np.random.default_rng(c.seed)
     source = pathlib.Path(c.textures) if c.textures else default_texture_dir()
     bank = TextureBank(rng, source)
     duration = (c.frames - 1) / c.rate()
-    scene = build_scene(bank, rng, movers=c.movers, duration=duration, colour=c.sensor == "rgbd")
+    if c.path == "loop":
+        scene = build_loop_scene(bank, rng, duration=duration, colour=c.sensor == "rgbd", period=c.lap_period)
+    else:
+        scene = build_scene(bank, rng, movers=c.movers, duration=duration, colour=c.sensor == "rgbd")
     K = _intrinsics(c)
     renderer = Renderer(K, c.width, c.height)
     layout = _Layout(out, c)

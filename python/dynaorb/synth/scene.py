@@ -75,6 +75,38 @@ class CameraPath:
 
 
 @dataclasses.dataclass
+class LoopPath:
+    """A closed circuit: an ellipse on the floor plan (x half-axis `rx`, z half-axis `rz`,
+    centred at z = `zc`), one lap every `period` seconds, the camera looking along the
+    direction of travel turned `outward` towards the walls, with gentle bob, pitch and roll.
+    pose(t) and pose(t + period) coincide: every lap passes the same places."""
+    rx: float = 2.3
+    rz: float = 2.9
+    zc: float = 0.0
+    period: float = 12.0
+    outward: float = math.radians(25)
+    bob: float = 0.04
+    pitch: float = math.radians(2)
+    roll: float = math.radians(1)
+
+    def pose(self, t: float) -> np.ndarray:
+        """T_room_camera (4x4) at time t; starts at the near side of the ellipse heading +x."""
+        th = 2 * math.pi * t / self.period
+        x, z = self.rx * math.sin(th), self.zc - self.rz * math.cos(th)
+        y = self.bob * math.sin(2 * math.pi * t / 1.1)
+        heading = math.atan2(self.rx * math.cos(th), self.rz * math.sin(th))  # yaw of the tangent
+        yaw = heading + self.outward  # travelling counter-clockwise seen from above: outward is +yaw
+        pitch = self.pitch * math.sin(2 * math.pi * t / 3.3)
+        roll = self.roll * math.sin(2 * math.pi * t / 4.1)
+        r = cv2.Rodrigues(np.array([0.0, yaw, 0.0]))[0] @ cv2.Rodrigues(np.array([pitch, 0.0, 0.0]))[0] \
+            @ cv2.Rodrigues(np.array([0.0, 0.0, roll]))[0]
+        T = np.eye(4)
+        T[:3, :3] = r
+        T[:3, 3] = (x, y, z)
+        return T
+
+
+@dataclasses.dataclass
 class Scene:
     boxes: list
     path: CameraPath
@@ -82,6 +114,48 @@ class Scene:
 
     def movers(self) -> list[Box]:
         return [b for b in self.boxes if b.moving]
+
+
+def build_loop_scene(bank: TextureBank, rng: np.random.Generator, *, duration: float, colour: bool,
+                     period: float = 12.0) -> Scene:
+    """A closed room (8.4 m x 11.4 m) with furniture along all four walls and a block in
+    the middle, circled by a LoopPath: the camera comes back to the places it started from."""
+    tex = (lambda size=512: pyramid(bank.colour(size))) if colour else (lambda size=512: pyramid(bank.grey(size)))
+    path = LoopPath(period=period)
+    W, T = ROOM_HALF_WIDTH, 0.2
+    z_min, z_max = path.zc - path.rz - 2.8, path.zc + path.rz + 2.8
+    slabs = {
+        "floor": ([-W, FLOOR_Y, z_min], [W, FLOOR_Y + T, z_max]),
+        "ceiling": ([-W, CEIL_Y - T, z_min], [W, CEIL_Y, z_max]),
+        "wall_left": ([-W - T, CEIL_Y, z_min], [-W, FLOOR_Y, z_max]),
+        "wall_right": ([W, CEIL_Y, z_min], [W + T, FLOOR_Y, z_max]),
+        "wall_back": ([-W, CEIL_Y, z_min - T], [W, FLOOR_Y, z_min]),
+        "wall_front": ([-W, CEIL_Y, z_max], [W, FLOOR_Y, z_max + T]),
+    }
+    boxes = [Box(name, np.array(lo, float), np.array(hi, float), tex(1024), texels_per_m=180.0)
+             for name, (lo, hi) in slabs.items()]
+    # Furniture along the side walls (x = +-W) and the end walls (z = z_min, z_max), at most
+    # 0.9 m deep, so that the path keeps >= 0.8 m from every surface.
+    for side in (-1, 1):
+        z = z_min + 0.3
+        while z < z_max - 1.0:
+            w, h, d = rng.uniform(0.4, 0.9), rng.uniform(0.6, 2.2), rng.uniform(0.6, 1.4)
+            lo = np.array([side * W - (w if side > 0 else 0), FLOOR_Y - h, z])
+            boxes.append(Box(f"furniture{len(boxes)}", lo, lo + np.array([w, h, min(d, z_max - z)]), tex(),
+                             texels_per_m=260.0))
+            z += d + rng.uniform(0.8, 2.0)
+    for end, z_wall in ((-1, z_min), (1, z_max)):
+        x = -W + 1.2
+        while x < W - 1.6:
+            w, h, d = rng.uniform(0.6, 1.2), rng.uniform(0.6, 2.2), rng.uniform(0.4, 0.8)
+            z0 = z_wall if end < 0 else z_wall - d
+            lo = np.array([x, FLOOR_Y - h, z0])
+            boxes.append(Box(f"furniture{len(boxes)}", lo, lo + np.array([w, h, d]), tex(), texels_per_m=260.0))
+            x += w + rng.uniform(0.8, 1.8)
+    # A block in the middle of the circuit.
+    boxes.append(Box("island", np.array([-0.7, FLOOR_Y - 1.1, path.zc - 1.0]),
+                     np.array([0.7, FLOOR_Y, path.zc + 1.0]), tex(), texels_per_m=260.0))
+    return Scene(boxes=boxes, path=path, duration=duration)
 
 
 def build_scene(bank: TextureBank, rng: np.random.Generator, *, movers: int, duration: float,
