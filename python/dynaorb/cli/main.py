@@ -36,6 +36,15 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--async-mapping", action="store_true",
                    help="run local mapping concurrently as on a live camera (default: each keyframe is "
                         "mapped before the next frame, which makes runs repeatable)")
+    r.add_argument("--vocabulary", metavar="PATH",
+                   help="bag-of-words vocabulary (ORBvoc.txt or one saved by dynaorb.core().Vocabulary): "
+                        "relocalisation of lost frames; needed by --load-map")
+    r.add_argument("--save-map", metavar="OUT.map", help="write the map to this file after the run")
+    r.add_argument("--load-map", metavar="IN.map",
+                   help="start from a saved map (the first frame is relocalised in it; needs --vocabulary)")
+    r.add_argument("--localization", action="store_true",
+                   help="localisation only: track in the map, no new keyframes or map points "
+                        "(with --load-map)")
     r.set_defaults(func=commands.cmd_run)
 
     e = sub.add_parser("eval", help="ATE / RPE of an estimate against ground truth (evo)")

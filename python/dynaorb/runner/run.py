@@ -48,6 +48,12 @@ class RunOptions:
     # Map each keyframe before tracking the next frame: repeatable runs. False
     # runs local mapping concurrently, as a live camera would.
     synchronous_mapping: bool = True
+    # A bag-of-words vocabulary file (ORBvoc.txt or a Vocabulary saved by
+    # dynaorb.core().Vocabulary), or a Vocabulary object: relocalisation.
+    vocabulary: object = None
+    save_map: str | None = None     # the map written here after the run
+    load_map: str | None = None     # start from this saved map (needs a vocabulary)
+    localization: bool = False      # localisation only: no new keyframes or map points
 
 
 # Stages of the tracking thread (summed into "frame_total"); the others are
@@ -149,7 +155,18 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
     for w in provider.warnings:
         log.warning("%s: %s", opts.path, w)
     settings = _settings(provider, opts.config)
-    system = _core.System(settings, provider.sensor, synchronous_mapping=opts.synchronous_mapping)
+    if opts.load_map and opts.vocabulary is None:
+        raise ValueError("--load-map needs a vocabulary (--vocabulary): frames are relocalised in the loaded map")
+    system = _core.System(settings, provider.sensor, synchronous_mapping=opts.synchronous_mapping,
+                          vocabulary=opts.vocabulary)
+    map_io = {}
+    if opts.load_map:
+        t0 = time.perf_counter()
+        system.load_map(opts.load_map)
+        map_io["loaded"] = {"path": str(opts.load_map), "load_s": time.perf_counter() - t0,
+                            **system.map_summary()}
+    if opts.localization:
+        system.set_localization_mode(True)
     masks = MaskFolder(opts.masks) if opts.masks else None
     out = pathlib.Path(opts.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -187,6 +204,11 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
         methods[result.method or "rejected"] += 1
         per_frame_ms.append(dict(result.stage_ms))
     wall = time.perf_counter() - start
+    if opts.save_map:
+        t0 = time.perf_counter()
+        system.save_map(opts.save_map)
+        map_io["saved"] = {"path": str(opts.save_map), "save_s": time.perf_counter() - t0,
+                           "bytes": pathlib.Path(opts.save_map).stat().st_size}
 
     stamps, poses = system.trajectory()
     _core.write_tum(str(out / "trajectory.tum"), stamps, poses)
@@ -215,6 +237,9 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
         "initializations": int(counters["initializations"]),
         "map": system.map_summary(),
         "synchronous_mapping": opts.synchronous_mapping,
+        "localization": opts.localization,
+        "relocalizations": int(counters["relocalizations"]),
+        "map_file": map_io or None,
         "stage_ms_median": _median_stages(per_frame_ms),
         "wall_s": wall,
         "fps": len(per_frame_ms) / wall if wall > 0 else None,
