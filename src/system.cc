@@ -9,6 +9,7 @@
 #include "dynaorb/io/errors.h"
 #include "dynaorb/map/frame.h"
 #include "dynaorb/map/map.h"
+#include "dynaorb/map/map_io.h"
 #include "dynaorb/tracking/frame_builder.h"
 
 namespace dynaorb {
@@ -133,6 +134,7 @@ struct System::Impl {
     tracking::TrackerOptions t = options.tracker;
     if (settings.camera.fps > 0) t.max_frames = static_cast<int>(std::lround(settings.camera.fps));
     tracker = std::make_unique<tracking::Tracker>(map, *mapper, sensor, t, options.vocabulary, database.get());
+    tracker->set_localization_mode(options.localization_only);
   }
 
   // Output pose of the input camera in the world of the first input camera.
@@ -376,5 +378,54 @@ MapSummary System::map_summary() const {
 }
 
 void System::reset() { impl_->reset(); }
+
+// Map files and localisation only (map/map_io.h).
+void System::save_map(const std::string& path) {
+  Impl& s = *impl_;
+  if (s.mapper) s.mapper->wait_idle();  // keyframes still queued are not yet in the graph
+  std::lock_guard<std::mutex> lk(s.map.mutex());
+  if (!s.builder) throw InputError(path, 0, "nothing to save: the system has no map yet");
+  map::save_map(path, s.map, *s.builder->calib(), s.sensor);
+}
+
+void System::load_map(const std::string& path) {
+  Impl& s = *impl_;
+  if (!s.options.vocabulary)
+    throw InputError(path, 0, "cannot use a loaded map without a vocabulary (frames are relocalised in it): "
+                              "create the System with one");
+  const map::MapFileInfo info = map::read_map_info(path);
+  if (!s.builder) {  // no frame yet: the calibration for the file's image size, if the settings allow it
+    const cv::Size size = s.expected_size.area() > 0 ? s.expected_size : cv::Size(info.width, info.height);
+    const std::string why =
+        map::calibration_mismatch(info, *map::Calibration::make(s.settings, s.sensor, size.width, size.height), s.sensor);
+    if (!why.empty()) throw InputError(path, 0, "map refused: " + why);
+    s.expected_size = size;
+    s.ensure_core(size);
+  }
+  s.mapper->wait_idle();  // queued keyframes mapped: a refused file leaves a consistent map
+  {
+    std::lock_guard<std::mutex> lk(s.map.mutex());
+    map::LoadOptions o;
+    o.vocabulary = s.options.vocabulary.get();
+    o.database = s.database.get();
+    map::load_map(path, s.map, s.builder->calib(), s.sensor, o);
+    s.tracker->map_replaced();
+  }
+  s.mapper->clear_queue();  // forgets the old map's recent points
+  s.records.clear();
+  s.state = TrackingState::kLost;
+  s.last_stamp = -INFINITY;
+}
+
+void System::set_localization_mode(bool on) {
+  Impl& s = *impl_;
+  s.options.localization_only = on;
+  if (!s.tracker) return;
+  if (on) s.mapper->wait_idle();  // the keyframes already queued are mapped, then no more
+  std::lock_guard<std::mutex> lk(s.map.mutex());
+  s.tracker->set_localization_mode(on);
+}
+
+bool System::localization_mode() const { return impl_->options.localization_only; }
 
 }  // namespace dynaorb

@@ -70,6 +70,8 @@ struct SystemOptions {
   // starts finish before the next frame is tracked (repeatable runs).
   bool loop_closing = true;
   loop::LoopCloserOptions loop;
+  // Localisation only from the start (see System::set_localization_mode).
+  bool localization_only = false;
 };
 
 struct MapSummary {
@@ -121,7 +123,19 @@ class System {
   Trajectory trajectory() const;
   std::vector<Eigen::Vector3d> map_points() const;  // world coordinates
   MapSummary map_summary() const;
+  // Drops the map, the keyframe database and the trajectory; the next frame starts a new map.
   void reset();
+
+  // Map files (map/map_io.h), between frames. save_map writes the current
+  // map (InputError when it cannot). load_map replaces the map with the
+  // file's and puts tracking into LOST, so that the next frame is relocalised
+  // in it; it needs a vocabulary, and the file's sensor and calibration must
+  // be this system's (InputError naming the file otherwise, the map kept).
+  void save_map(const std::string& path);
+  void load_map(const std::string& path);
+  // Localisation only (ORB-SLAM2): tracking in the map, no new keyframes or points.
+  void set_localization_mode(bool on);
+  bool localization_mode() const;
 
  private:
   struct Impl;

@@ -382,7 +382,22 @@ PYBIND11_MODULE(_core, m) {
         return d;
       })
       .def("trajectory", [](const System& s) { return trajectory_to_numpy(s.trajectory()); })
-      .def("reset", &System::reset);
+      .def("reset", &System::reset, "Drops the map, the keyframe database and the trajectory.")
+      .def("save_map", [](System& s, const py::object& path) {
+        const std::string p = path_of(path);
+        py::gil_scoped_release release;
+        s.save_map(p);
+      }, py::arg("path"), "Writes the map to a versioned binary file (between frames).")
+      .def("load_map", [](System& s, const py::object& path) {
+        const std::string p = path_of(path);
+        py::gil_scoped_release release;
+        s.load_map(p);
+      }, py::arg("path"),
+         "Replaces the map with a saved one; the next frame is relocalised in it (needs a vocabulary;\n"
+         "the file's sensor and calibration must be this system's: InputError otherwise).")
+      .def("set_localization_mode", &System::set_localization_mode, py::arg("on"),
+           "Localisation only: tracking in the map, no new keyframes or map points.")
+      .def_property("localization_mode", &System::localization_mode, &System::set_localization_mode);
 
   m.def("write_tum", [](const std::string& path, py::array_t<double> stamps, py::array_t<double> poses) {
     io::write_tum(path, trajectory_from_numpy(stamps, poses));

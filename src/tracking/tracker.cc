@@ -51,6 +51,14 @@ void Tracker::reset() {
   temporal_points_.clear();
   init_reference_ = Frame();
   init_prev_matched_.clear();
+  keep_map_ = false;
+  vo_ = false;
+}
+
+void Tracker::map_replaced() {
+  reset();
+  initialized_ = true;  // with last_ok_ false: the next frame is relocalised
+  keep_map_ = true;
 }
 
 TrackOutcome Tracker::track(Frame& f) {
@@ -75,20 +83,39 @@ TrackOutcome Tracker::track(Frame& f) {
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     out.method = "relocalization";
   } else {
-    if (last_ok_ && has_velocity_) {
+    if (localization_ && vo_ && database_) {
+      // Localisation only, on visual odometry: back into the map when possible (ORB-SLAM2).
+      const auto t0 = std::chrono::steady_clock::now();
+      ok = relocalize(f);
+      out.relocalization_ms =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      out.method = "relocalization";
+    }
+    if (!ok && last_ok_ && has_velocity_) {
       ok = track_motion_model(f);
       out.method = "motion_model";
     }
-    if (!ok) {
+    if (!ok && !(localization_ && vo_)) {
       ok = track_reference_keyframe(f);
       out.method = "reference_keyframe";
     }
   }
-  if (ok) ok = track_local_map(f);
+  bool vo = false;
+  if (ok) {
+    ok = track_local_map(f);
+    if (!ok && localization_ && out.method == "motion_model" && f.matched_points() >= o_.min_local_map_inliers) {
+      // Localisation only: too few map points in view, tracked with the last
+      // frame's visual-odometry points (ORB-SLAM2's mbVO).
+      ok = vo = true;
+      out.method = "visual_odometry";
+    }
+  }
+  vo_ = vo;
   if (!ok) {
     out.method = "lost";
     last_ok_ = false;
     has_velocity_ = false;
+    if (localization_ || keep_map_) return out;  // the map is kept: relocalised later
     // Relocalisation (above) failed too: only a small map is given up, and
     // only after reset_after_lost frames that a new map could start from.
     if (can_initialize(f)) ++lost_streak_;
@@ -111,7 +138,7 @@ TrackOutcome Tracker::track(Frame& f) {
   for (int i = 0; i < f.size(); ++i)
     if (f.points[i] && f.points[i]->observation_count() < 1) f.points[i].reset();
   temporal_points_.clear();
-  if (need_new_keyframe(f)) {
+  if (!localization_ && need_new_keyframe(f)) {
     out.keyframe = create_keyframe(f);
     out.new_keyframe = true;
   }

@@ -74,6 +74,7 @@ class KeyFrame {
 
  private:
   friend class Map;
+  friend class MapIo;  // map_io.cc: restores state on loading
   Eigen::Isometry3d T_cw_;
   std::vector<std::shared_ptr<MapPoint>> points_;
   std::shared_ptr<const BagOfWords> bow_;

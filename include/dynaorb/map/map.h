@@ -62,6 +62,7 @@ class Map {
   void clear();
 
  private:
+  friend class MapIo;  // map_io.cc: restores the id counters on loading
   mutable std::mutex mutex_;
   MapObserver* observer_ = nullptr;
   std::map<long, std::shared_ptr<KeyFrame>> keyframes_;

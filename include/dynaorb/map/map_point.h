@@ -74,6 +74,7 @@ class MapPoint {
 
  private:
   friend class Map;
+  friend class MapIo;  // map_io.cc: restores state on loading
   Eigen::Vector3d position_;
   std::vector<Observation> observations_;
   int n_obs_ = 0;

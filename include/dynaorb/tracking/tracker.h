@@ -123,6 +123,16 @@ class Tracker {
   TrackOutcome track(map::Frame& frame);
   void reset();
   bool initialized() const { return initialized_; }
+  // The map was replaced (loaded from a file): lost, so that the next frame
+  // is relocalised in it; a loaded map is never dropped as too small.
+  void map_replaced();
+  // Localisation only (ORB-SLAM2's ActivateLocalizationMode): no keyframes
+  // and no map points are made and the map is never dropped; frames are
+  // tracked against the map and, where it has too few points in view, with
+  // the last frame's visual-odometry points ("visual_odometry"), trying to
+  // relocalise in the map meanwhile.
+  void set_localization_mode(bool on) { localization_ = on; }
+  bool localization_mode() const { return localization_; }
 
  private:
   bool can_initialize(const map::Frame& f) const;  // enough keypoints and depth for a map
@@ -159,6 +169,9 @@ class Tracker {
   const place::KeyFrameDatabase* const database_;
 
   bool initialized_ = false;
+  bool localization_ = false;
+  bool keep_map_ = false;  // a loaded map: never dropped as too small
+  bool vo_ = false;        // localisation only: the last frame was tracked by visual odometry
   bool last_ok_ = false;
   int lost_streak_ = 0;  // lost frames in a row that could have initialised a map
   map::Frame last_;

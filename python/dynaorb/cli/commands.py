@@ -14,7 +14,9 @@ def cmd_run(args) -> int:
                                    segment=args.segment, segment_mode=args.segment_mode,
                                    segment_threads=args.segment_threads, max_mask_age=args.max_mask_age,
                                    progress=not args.quiet,
-                                   synchronous_mapping=not args.async_mapping))
+                                   synchronous_mapping=not args.async_mapping,
+                                   save_map=args.save_map,
+                                   load_map=args.load_map, localization=args.localization))
     print(summary_line(args.out, stats))
     return 0
 

@@ -23,8 +23,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--masks", help="folder of per-frame masks / label images named like the frames "
                                    "(a `dynaorb segment` cache)")
     r.add_argument("--vocabulary", default="default", metavar="FILE|default|none",
-                   help="bag-of-words vocabulary for relocalisation (default: dynaorb's own, built on first "
-                        "use with `dynaorb vocab default`; or a binary / ORBvoc.txt file; none: without)")
+                   help="bag-of-words vocabulary for relocalisation and loop closing (default: dynaorb's own, "
+                        "built on first use with `dynaorb vocab default`; or a binary / ORBvoc.txt file; "
+                        "none: without; --load-map needs one)")
     r.add_argument("--segment", metavar="MODEL",
                    help="segment in-process with this model (file or name from `dynaorb models list`); "
                         "its movable classes are masked")
@@ -39,6 +40,12 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--async-mapping", action="store_true",
                    help="run local mapping concurrently as on a live camera (default: each keyframe is "
                         "mapped before the next frame, which makes runs repeatable)")
+    r.add_argument("--save-map", metavar="OUT.map", help="write the map to this file after the run")
+    r.add_argument("--load-map", metavar="IN.map",
+                   help="start from a saved map (the first frame is relocalised in it; needs a vocabulary)")
+    r.add_argument("--localization", action="store_true",
+                   help="localisation only: track in the map, no new keyframes or map points "
+                        "(with --load-map)")
     r.set_defaults(func=commands.cmd_run)
 
     e = sub.add_parser("eval", help="ATE / RPE of an estimate against ground truth (evo)")

@@ -38,11 +38,12 @@ class RunOptions:
     out: str = "out/run"
     dynamic: str = "off"
     masks: str | None = None
+    # Bag-of-words vocabulary (relocalisation, loop closing, reference-keyframe
+    # matching): "default" (dynaorb's own, built and cached on first use), "none",
+    # a file (binary or ORBvoc.txt), or a dynaorb.core().Vocabulary object.
+    vocabulary: object = "default"
     # In-process segmentation: a model file or catalog name (see `dynaorb models`);
     # its movable classes are masked. Exclusive with masks.
-    # Bag-of-words vocabulary (relocalisation, reference-keyframe matching): "default"
-    # (dynaorb's own, built and cached on first use), "none", or a file (binary or ORBvoc.txt).
-    vocabulary: str | None = "default"
     segment: str | None = None
     segment_mode: str = "async"
     segment_threads: int = 1     # leaves the other core of a 2-core machine to tracking
@@ -51,6 +52,9 @@ class RunOptions:
     # Map each keyframe before tracking the next frame: repeatable runs. False
     # runs local mapping concurrently, as a live camera would.
     synchronous_mapping: bool = True
+    save_map: str | None = None     # the map written here after the run
+    load_map: str | None = None     # start from this saved map (needs a vocabulary)
+    localization: bool = False      # localisation only: no new keyframes or map points
 
 
 # Stages of the tracking thread (summed into "frame_total"); the others are
@@ -134,10 +138,12 @@ def _semantic(opts: RunOptions):
                                                                 max_age_frames=opts.max_mask_age))
 
 
-def _vocabulary(spec: str | None):
+def _vocabulary(spec):
     """A Vocabulary object, or None for spec None / "none"."""
-    if spec in (None, "none"):
+    if spec is None or (isinstance(spec, str) and spec == "none"):
         return None
+    if not isinstance(spec, (str, pathlib.Path)):
+        return spec  # already a Vocabulary
     if spec == "default":
         from dynaorb.vocab import build_default, default_vocabulary_path
 
@@ -167,8 +173,19 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
     for w in provider.warnings:
         log.warning("%s: %s", opts.path, w)
     settings = _settings(provider, opts.config)
+    vocabulary = _vocabulary(opts.vocabulary)
+    if opts.load_map and vocabulary is None:
+        raise ValueError("--load-map needs a vocabulary (--vocabulary): frames are relocalised in the loaded map")
     system = _core.System(settings, provider.sensor, synchronous_mapping=opts.synchronous_mapping,
-                          vocabulary=_vocabulary(opts.vocabulary))
+                          vocabulary=vocabulary)
+    map_io = {}
+    if opts.load_map:
+        t0 = time.perf_counter()
+        system.load_map(opts.load_map)
+        map_io["loaded"] = {"path": str(opts.load_map), "load_s": time.perf_counter() - t0,
+                            **system.map_summary()}
+    if opts.localization:
+        system.set_localization_mode(True)
     masks = MaskFolder(opts.masks) if opts.masks else None
     out = pathlib.Path(opts.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -206,6 +223,11 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
         methods[result.method or "rejected"] += 1
         per_frame_ms.append(dict(result.stage_ms))
     wall = time.perf_counter() - start
+    if opts.save_map:
+        t0 = time.perf_counter()
+        system.save_map(opts.save_map)
+        map_io["saved"] = {"path": str(opts.save_map), "save_s": time.perf_counter() - t0,
+                           "bytes": pathlib.Path(opts.save_map).stat().st_size}
 
     stamps, poses = system.trajectory()
     _core.write_tum(str(out / "trajectory.tum"), stamps, poses)
@@ -232,10 +254,12 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
         "tracking_methods": dict(methods),
         "lost_frames": int(counters["lost"]),
         "relocalizations": int(counters["relocalizations"]),
-        "vocabulary": opts.vocabulary,
+        "vocabulary": opts.vocabulary if isinstance(opts.vocabulary, (str, type(None))) else "given",
         "initializations": int(counters["initializations"]),
         "map": system.map_summary(),
         "synchronous_mapping": opts.synchronous_mapping,
+        "localization": opts.localization,
+        "map_file": map_io or None,
         "stage_ms_median": _median_stages(per_frame_ms),
         "wall_s": wall,
         "fps": len(per_frame_ms) / wall if wall > 0 else None,
