@@ -11,6 +11,7 @@
 #include "dynaorb/map/map.h"
 #include "dynaorb/map/map_io.h"
 #include "dynaorb/tracking/frame_builder.h"
+#include "dynaorb/core/stopwatch.h"
 
 namespace dynaorb {
 
@@ -36,12 +37,6 @@ std::string to_string(RejectReason reason) {
 }
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
 
 std::string size_text(const cv::Size& s) { return std::to_string(s.width) + "x" + std::to_string(s.height); }
 

@@ -9,6 +9,7 @@
 #include "dynaorb/match/matcher.h"
 #include "dynaorb/optimize/bundle_adjuster.h"
 #include "dynaorb/optimize/pose_graph.h"
+#include "dynaorb/core/stopwatch.h"
 
 namespace dynaorb::loop {
 
@@ -16,16 +17,6 @@ using map::KeyFrame;
 using map::MapPoint;
 
 namespace {
-using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-
-Eigen::Matrix3d intrinsics(const map::Calibration& c) {
-  Eigen::Matrix3d K;
-  K << c.fx, 0, c.cx, 0, c.fy, c.cy, 0, 0, 1;
-  return K;
-}
 
 Sim3 pose_of(const KeyFrame& kf) { return Sim3::from_isometry(kf.T_cw()); }
 }  // namespace
@@ -198,7 +189,7 @@ bool LoopCloser::compute_sim3(const std::shared_ptr<KeyFrame>& kf,
   const match::Matcher matcher;
   const map::Calibration& c1 = kf->calib();
   const map::Features& f1 = kf->f();
-  const Eigen::Matrix3d K1 = intrinsics(c1);
+  const Eigen::Matrix3d K1 = c1.K_eigen();
   for (const auto& cand : candidates) {
     if (cand->erased() || !cand->bow()) continue;
     map::Frame bow_frame(kf->frame_id, kf->stamp, kf->features);
@@ -228,7 +219,7 @@ bool LoopCloser::compute_sim3(const std::shared_ptr<KeyFrame>& kf,
     if (static_cast<int>(matches.size()) < o_.min_bow_matches) continue;
     Sim3RansacOptions ro = o_.ransac;
     ro.seed = static_cast<unsigned>(kf->id * 7919 + cand->id);
-    const Sim3RansacResult r = sim3_ransac(matches, K1, intrinsics(c2), ro);
+    const Sim3RansacResult r = sim3_ransac(matches, K1, c2.K_eigen(), ro);
     if (!r.ok) continue;
 
     // Guided matching with the estimate: the points of the candidate and its covisibles

@@ -1,18 +1,12 @@
 #include "dynaorb/mapping/local_mapper.h"
 
 #include <chrono>
+#include "dynaorb/core/stopwatch.h"
 
 namespace dynaorb::mapping {
 
 using map::KeyFrame;
 using map::MapPoint;
-
-namespace {
-using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-}  // namespace
 
 LocalMapper::LocalMapper(map::Map& map, Sensor sensor, const LocalMapperOptions& options,
                          std::shared_ptr<const vocab::Vocabulary> vocabulary, place::KeyFrameDatabase* database)

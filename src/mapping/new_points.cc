@@ -24,12 +24,7 @@ Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
 Eigen::Matrix3d fundamental(const KeyFrame& kf1, const KeyFrame& kf2) {
   const Eigen::Isometry3d T12 = kf1.T_cw() * kf2.T_wc();
   const Eigen::Matrix3d E = skew(T12.translation()) * T12.rotation();
-  Eigen::Matrix3d K1, K2;
-  const map::Calibration& c1 = kf1.calib();
-  const map::Calibration& c2 = kf2.calib();
-  K1 << c1.fx, 0, c1.cx, 0, c1.fy, c1.cy, 0, 0, 1;
-  K2 << c2.fx, 0, c2.cx, 0, c2.fy, c2.cy, 0, 0, 1;
-  return K1.inverse().transpose() * E * K2.inverse();
+  return kf1.calib().K_eigen().inverse().transpose() * E * kf2.calib().K_eigen().inverse();
 }
 
 // Linear triangulation (DLT) from normalised image coordinates.

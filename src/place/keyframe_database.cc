@@ -56,85 +56,48 @@ std::size_t KeyFrameDatabase::size() const {
 }
 
 std::vector<PlaceCandidate> KeyFrameDatabase::relocalization_candidates(const vocab::BowVector& bow) const {
-  // Keyframes sharing words with the query, and how many.
-  std::unordered_map<KeyFrame*, int> common;
-  {
-    std::lock_guard<std::mutex> lk(mutex_);
-    for (const auto& [word, weight] : bow)
-      if (word < index_.size())
-        for (KeyFrame* kf : index_[word]) ++common[kf];
-  }
-  if (common.empty()) return {};
-  int max_common = 0;
-  for (const auto& [kf, n] : common) max_common = std::max(max_common, n);
-  const double min_common = o_.min_common_words_ratio * max_common;
-
-  // Those sharing enough, scored (bags of words are immutable once set).
-  std::unordered_map<KeyFrame*, double> score;
-  for (const auto& [kf, n] : common)
-    if (n > min_common) score[kf] = vocabulary_->score(bow, kf->bow()->words);
-
-  // Each scored keyframe with its best covisibles that were scored too: the
-  // group's score accumulates, its best keyframe stands for it.
-  std::unordered_map<KeyFrame*, PlaceCandidate> best_of_group;
-  double best_group = 0;
-  for (const auto& [kf, s] : score) {
-    PlaceCandidate c{kf, s, s};
-    for (KeyFrame* n : kf->covisibles(o_.group_covisibles)) {
-      const auto it = score.find(n);
-      if (it == score.end()) continue;
-      c.group_score += it->second;
-      if (it->second > c.score) {
-        c.keyframe = n;
-        c.score = it->second;
-      }
-    }
-    best_group = std::max(best_group, c.group_score);
-    PlaceCandidate& kept = best_of_group[c.keyframe];
-    if (!kept.keyframe || c.group_score > kept.group_score) kept = c;
-  }
-  const double min_group = o_.min_group_score_ratio * best_group;
-  std::vector<PlaceCandidate> out;
-  for (const auto& [kf, c] : best_of_group)
-    if (c.group_score > min_group) out.push_back(c);
-  std::sort(out.begin(), out.end(), [](const PlaceCandidate& a, const PlaceCandidate& b) {
-    return a.group_score != b.group_score ? a.group_score > b.group_score : a.keyframe->id < b.keyframe->id;
-  });
-  return out;
+  return candidates(bow, nullptr, 0.0);
 }
 
 std::vector<PlaceCandidate> KeyFrameDatabase::loop_candidates(const KeyFrame& query, double min_score) const {
   if (!query.bow())
     throw std::invalid_argument("KeyFrameDatabase::loop_candidates: keyframe " + std::to_string(query.id) +
                                 " has no bag of words");
-  const vocab::BowVector& bow = query.bow()->words;
   std::unordered_set<const KeyFrame*> connected;
   for (const KeyFrame* n : query.covisibles()) connected.insert(n);
   connected.insert(&query);
-  // Keyframes sharing words with the query (not connected to it), and how many.
+  return candidates(query.bow()->words, &connected, min_score);
+}
+
+std::vector<PlaceCandidate> KeyFrameDatabase::candidates(const vocab::BowVector& bow,
+                                                         const std::unordered_set<const KeyFrame*>* excluded,
+                                                         double min_score) const {
+  // Keyframes sharing words with the query (the excluded ones aside), and how many.
   std::unordered_map<KeyFrame*, int> common;
   {
     std::lock_guard<std::mutex> lk(mutex_);
     for (const auto& [word, weight] : bow)
       if (word < index_.size())
         for (KeyFrame* kf : index_[word])
-          if (!connected.count(kf)) ++common[kf];
+          if (!excluded || !excluded->count(kf)) ++common[kf];
   }
   if (common.empty()) return {};
   int max_common = 0;
   for (const auto& [kf, n] : common) max_common = std::max(max_common, n);
   const double min_common = o_.min_common_words_ratio * max_common;
 
-  // Scored: those sharing enough words; candidates: those also scoring >= min_score.
+  // Those sharing enough words, scored (bags of words are immutable once set).
   std::unordered_map<KeyFrame*, double> score;
   for (const auto& [kf, n] : common)
     if (n > min_common) score[kf] = vocabulary_->score(bow, kf->bow()->words);
 
-  std::unordered_map<KeyFrame*, PlaceCandidate> best_of_group;
-  double best_group = 0;
-  // Deterministic order (ids), so that ties between groups resolve the same way every run.
+  // Each keyframe scoring at least min_score, with its best covisibles that
+  // were scored too: the group's score accumulates, its best keyframe stands
+  // for it. Visited in id order, so ties resolve the same way every run.
   std::vector<std::pair<KeyFrame*, double>> scored(score.begin(), score.end());
   std::sort(scored.begin(), scored.end(), [](const auto& a, const auto& b) { return a.first->id < b.first->id; });
+  std::unordered_map<KeyFrame*, PlaceCandidate> best_of_group;
+  double best_group = 0;
   for (const auto& [kf, s] : scored) {
     if (s < min_score) continue;
     PlaceCandidate c{kf, s, s};

@@ -5,14 +5,11 @@
 #include <opencv2/calib3d.hpp>
 
 #include "dynaorb/features/stereo_matcher.h"
+#include "dynaorb/core/stopwatch.h"
 
 namespace dynaorb::tracking {
 
 namespace {
-using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 ExtractorSettings doubled(ExtractorSettings s) {
   s.n_features *= 2;
   return s;

@@ -42,8 +42,7 @@ bool Tracker::initialize_mono(Frame& f) {
     return false;
   }
   const map::Calibration& c = f.calib();
-  Eigen::Matrix3d K;
-  K << c.fx, 0, c.cx, 0, c.fy, c.cy, 0, 0, 1;
+  const Eigen::Matrix3d K = c.K_eigen();
   auto pixels = [&c](const map::Features& fs, std::vector<Eigen::Vector2d>& uv, std::vector<double>& s2) {
     uv.resize(fs.size());
     s2.resize(fs.size());

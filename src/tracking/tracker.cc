@@ -6,6 +6,7 @@
 #include <unordered_map>
 
 #include "dynaorb/optimize/pose_optimizer.h"
+#include "dynaorb/core/stopwatch.h"
 
 namespace dynaorb::tracking {
 
@@ -77,18 +78,16 @@ TrackOutcome Tracker::track(Frame& f) {
   bool ok = false;
   if (!last_ok_ && database_) {
     // Lost: relocalise against the whole map (ORB-SLAM2 tries nothing else).
-    const auto t0 = std::chrono::steady_clock::now();
+    const auto t0 = Clock::now();
     ok = relocalize(f);
-    out.relocalization_ms =
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    out.relocalization_ms = ms_since(t0);
     out.method = "relocalization";
   } else {
     if (localization_ && vo_ && database_) {
       // Localisation only, on visual odometry: back into the map when possible (ORB-SLAM2).
-      const auto t0 = std::chrono::steady_clock::now();
+      const auto t0 = Clock::now();
       ok = relocalize(f);
-      out.relocalization_ms =
-          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      out.relocalization_ms = ms_since(t0);
       out.method = "relocalization";
     }
     if (!ok && last_ok_ && has_velocity_) {

@@ -38,3 +38,21 @@ def synth_stereo(tmp_path_factory, data) -> pathlib.Path:
     out = tmp_path_factory.mktemp("synth_stereo")
     generate(out, SynthConfig(sensor="stereo", movers=2, frames=6, seed=3, width=320, height=240, fx=262.5))
     return out
+
+
+@pytest.fixture(scope="session")
+def real_vocabulary(data):
+    """A small vocabulary (k=10, L=5) trained at test time with the System's own
+    extractor on real images: EuRoC MH_05 (every 10th frame) and KITTI 06 (every
+    5th): 36 images, about 40k words, 0.15 s."""
+    from dynaorb import core
+
+    _core = core()
+    descriptors = []
+    for kind, path, step in (("euroc", data / "euroc" / "MH_05_difficult_head", 10),
+                             ("kitti", data / "kitti" / "sequences" / "06", 5)):
+        provider = _core.open_dataset(kind, str(path))
+        settings = provider.default_settings()
+        for i in range(0, len(provider), step):
+            descriptors.append(_core.extract_orb(provider.load(i).image, settings)[1])
+    return _core.Vocabulary.train(descriptors, k=10, L=5, seed=0)

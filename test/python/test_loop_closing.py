@@ -36,16 +36,8 @@ LOOP_FRAMES = 240
 
 
 @pytest.fixture(scope="module")
-def vocabulary(data):
-    _core = core()
-    descriptors = []
-    for kind, path, step in (("euroc", data / "euroc" / "MH_05_difficult_head", 10),
-                             ("kitti", data / "kitti" / "sequences" / "06", 5)):
-        provider = _core.open_dataset(kind, str(path))
-        settings = provider.default_settings()
-        for i in range(0, len(provider), step):
-            descriptors.append(_core.extract_orb(provider.load(i).image, settings)[1])
-    return _core.Vocabulary.train(descriptors, k=10, L=5, seed=0)
+def vocabulary(real_vocabulary):
+    return real_vocabulary
 
 
 @pytest.fixture(scope="module")

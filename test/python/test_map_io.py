@@ -29,16 +29,8 @@ FRAMES = 25
 
 
 @pytest.fixture(scope="module")
-def vocabulary(data):
-    _core = core()
-    mh = _core.open_dataset("euroc", str(data / "euroc" / "MH_05_difficult_head"))
-    kitti = _core.open_dataset("kitti", str(data / "kitti" / "sequences" / "06"))
-    descriptors = []
-    for provider, step in ((mh, 10), (kitti, 5)):
-        settings = provider.default_settings()
-        for i in range(0, len(provider), step):
-            descriptors.append(_core.extract_orb(provider.load(i).image, settings)[1])
-    return _core.Vocabulary.train(descriptors, k=10, L=5, seed=0)
+def vocabulary(real_vocabulary):
+    return real_vocabulary
 
 
 @pytest.fixture(scope="module")
@@ -188,4 +180,4 @@ def test_runner_saves_and_loads_maps(tmp_path, data, vocabulary):
     assert second["localization"] is True
     with pytest.raises(ValueError, match="vocabulary"):
         run_dataset(RunOptions(kind="euroc", path=seq, out=str(tmp_path / "c"), progress=False,
-                               load_map=str(out_map)))
+                               load_map=str(out_map), vocabulary="none"))

@@ -34,20 +34,9 @@ from dynaorb import core
 
 
 @pytest.fixture(scope="module")
-def vocabulary(data):
-    _core = core()
-    mh = _core.open_dataset("euroc", str(data / "euroc" / "MH_05_difficult_head"))
-    kitti = _core.open_dataset("kitti", str(data / "kitti" / "sequences" / "06"))
-    descriptors = []
-    for provider, step in ((mh, 10), (kitti, 5)):
-        settings = provider.default_settings()
-        for i in range(0, len(provider), step):
-            keypoints, d = _core.extract_orb(provider.load(i).image, settings)
-            assert d.shape == (len(keypoints), 32) and d.dtype == np.uint8
-            descriptors.append(d)
-    voc = _core.Vocabulary.train(descriptors, k=10, L=5, seed=0)
-    assert voc.k == 10 and voc.L == 5 and voc.size > 10000
-    return voc
+def vocabulary(real_vocabulary):
+    assert real_vocabulary.k == 10 and real_vocabulary.L == 5 and real_vocabulary.size > 10000
+    return real_vocabulary
 
 
 def _run(provider, black, vocabulary):

@@ -28,6 +28,11 @@ struct Calibration {
   Sensor sensor = Sensor::kStereo;
   double fx = 0, fy = 0, cx = 0, cy = 0, inv_fx = 0, inv_fy = 0;
   cv::Mat K;                 // 3x3 CV_64F
+  Eigen::Matrix3d K_eigen() const {
+    Eigen::Matrix3d k;
+    k << fx, 0, cx, 0, fy, cy, 0, 0, 1;
+    return k;
+  }
   cv::Mat dist;              // distortion of the tracked image (empty: none)
   double bf = 0;             // baseline * fx (0 for monocular)
   double baseline = 0;

@@ -77,6 +77,12 @@ class KeyFrameDatabase : public map::MapObserver {
   void map_cleared() override { clear(); }
 
  private:
+  // ORB-SLAM's scoring and covisibility grouping, shared by both queries:
+  // keyframes in `excluded` are skipped, groups are seeded by keyframes
+  // scoring at least min_score.
+  std::vector<PlaceCandidate> candidates(const vocab::BowVector& bow,
+                                         const std::unordered_set<const map::KeyFrame*>* excluded,
+                                         double min_score) const;
   map::Map& map_;
   const std::shared_ptr<const vocab::Vocabulary> vocabulary_;
   const KeyFrameDatabaseOptions o_;

@@ -116,14 +116,9 @@ class Scene:
         return [b for b in self.boxes if b.moving]
 
 
-def build_loop_scene(bank: TextureBank, rng: np.random.Generator, *, duration: float, colour: bool,
-                     period: float = 12.0) -> Scene:
-    """A closed room (8.4 m x 11.4 m) with furniture along all four walls and a block in
-    the middle, circled by a LoopPath: the camera comes back to the places it started from."""
-    tex = (lambda size=512: pyramid(bank.colour(size))) if colour else (lambda size=512: pyramid(bank.grey(size)))
-    path = LoopPath(period=period)
+def room_slabs(tex, z_min: float, z_max: float) -> list[Box]:
+    """The room between z_min and z_max: six slabs (floor, ceiling, four walls), each with its own texture."""
     W, T = ROOM_HALF_WIDTH, 0.2
-    z_min, z_max = path.zc - path.rz - 2.8, path.zc + path.rz + 2.8
     slabs = {
         "floor": ([-W, FLOOR_Y, z_min], [W, FLOOR_Y + T, z_max]),
         "ceiling": ([-W, CEIL_Y - T, z_min], [W, CEIL_Y, z_max]),
@@ -132,8 +127,19 @@ def build_loop_scene(bank: TextureBank, rng: np.random.Generator, *, duration: f
         "wall_back": ([-W, CEIL_Y, z_min - T], [W, FLOOR_Y, z_min]),
         "wall_front": ([-W, CEIL_Y, z_max], [W, FLOOR_Y, z_max + T]),
     }
-    boxes = [Box(name, np.array(lo, float), np.array(hi, float), tex(1024), texels_per_m=180.0)
-             for name, (lo, hi) in slabs.items()]
+    return [Box(name, np.array(lo, float), np.array(hi, float), tex(1024), texels_per_m=180.0)
+            for name, (lo, hi) in slabs.items()]
+
+
+def build_loop_scene(bank: TextureBank, rng: np.random.Generator, *, duration: float, colour: bool,
+                     period: float = 12.0) -> Scene:
+    """A closed room (8.4 m x 11.4 m) with furniture along all four walls and a block in
+    the middle, circled by a LoopPath: the camera comes back to the places it started from."""
+    tex = (lambda size=512: pyramid(bank.colour(size))) if colour else (lambda size=512: pyramid(bank.grey(size)))
+    path = LoopPath(period=period)
+    W = ROOM_HALF_WIDTH
+    z_min, z_max = path.zc - path.rz - 2.8, path.zc + path.rz + 2.8
+    boxes = room_slabs(tex, z_min, z_max)
     # Furniture along the side walls (x = +-W) and the end walls (z = z_min, z_max), at most
     # 0.9 m deep, so that the path keeps >= 0.8 m from every surface.
     for side in (-1, 1):
@@ -170,18 +176,7 @@ def build_scene(bank: TextureBank, rng: np.random.Generator, *, movers: int, dur
     path = CameraPath()
     length = path.speed * duration
     z_min, z_max = -3.0, length + 9.0
-    # The room: six slabs, each with its own texture (floor, ceiling, walls).
-    W, T = ROOM_HALF_WIDTH, 0.2
-    slabs = {
-        "floor": ([-W, FLOOR_Y, z_min], [W, FLOOR_Y + T, z_max]),
-        "ceiling": ([-W, CEIL_Y - T, z_min], [W, CEIL_Y, z_max]),
-        "wall_left": ([-W - T, CEIL_Y, z_min], [-W, FLOOR_Y, z_max]),
-        "wall_right": ([W, CEIL_Y, z_min], [W + T, FLOOR_Y, z_max]),
-        "wall_back": ([-W, CEIL_Y, z_min - T], [W, FLOOR_Y, z_min]),
-        "wall_front": ([-W, CEIL_Y, z_max], [W, FLOOR_Y, z_max + T]),
-    }
-    boxes = [Box(name, np.array(lo, float), np.array(hi, float), tex(1024), texels_per_m=180.0)
-             for name, (lo, hi) in slabs.items()]
+    boxes = room_slabs(tex, z_min, z_max)
     # Static furniture along the walls (depth structure for the tracker).
     z = 1.0
     while z < z_max - 2.0:
