@@ -6,6 +6,7 @@
 
 #include "dynaorb/mapping/local_mapper.h"
 #include "dynaorb/match/matcher.h"
+#include "dynaorb/core/triangulation.h"
 
 namespace dynaorb::mapping {
 
@@ -25,21 +26,6 @@ Eigen::Matrix3d fundamental(const KeyFrame& kf1, const KeyFrame& kf2) {
   const Eigen::Isometry3d T12 = kf1.T_cw() * kf2.T_wc();
   const Eigen::Matrix3d E = skew(T12.translation()) * T12.rotation();
   return kf1.calib().K_eigen().inverse().transpose() * E * kf2.calib().K_eigen().inverse();
-}
-
-// Linear triangulation (DLT) from normalised image coordinates.
-bool triangulate(const Eigen::Vector3d& x1, const Eigen::Matrix<double, 3, 4>& P1,
-                 const Eigen::Vector3d& x2, const Eigen::Matrix<double, 3, 4>& P2, Eigen::Vector3d& X) {
-  Eigen::Matrix4d A;
-  A.row(0) = x1.x() * P1.row(2) - P1.row(0);
-  A.row(1) = x1.y() * P1.row(2) - P1.row(1);
-  A.row(2) = x2.x() * P2.row(2) - P2.row(0);
-  A.row(3) = x2.y() * P2.row(2) - P2.row(1);
-  Eigen::JacobiSVD<Eigen::Matrix4d> svd(A, Eigen::ComputeFullV);
-  const Eigen::Vector4d h = svd.matrixV().col(3);
-  if (std::abs(h(3)) < 1e-12) return false;
-  X = h.head<3>() / h(3);
-  return true;
 }
 
 // Reprojection check of a new point in one keyframe (chi2 at 95 %).
@@ -102,7 +88,7 @@ void LocalMapper::create_new_points(const std::shared_ptr<KeyFrame>& kf_ptr) {
       const double cos_st = std::min(cos_st1, cos_st2);
       Eigen::Vector3d X;
       if (cos_rays < cos_st && cos_rays > 0 && (stereo1 || stereo2 || cos_rays < 0.9998)) {
-        if (!triangulate(x1, P1, x2, P2, X)) continue;
+        if (!triangulate_dlt(x1.head<2>(), P1, x2.head<2>(), P2, X)) continue;
       } else if (stereo1 && cos_st1 < cos_st2) {
         X = kf1.unproject(i1);
       } else if (stereo2 && cos_st2 < cos_st1) {

@@ -158,15 +158,7 @@ bool Tracker::create_initial_map_mono(Frame& f, const std::vector<TwoViewMatch>&
   // The first keyframe goes to the local mapper now, the second through the
   // outcome (track() returns it as the new keyframe).
   mapper_.insert_keyframe(kf_ini);
-  reference_ = kf_cur;
-  local_keyframes_ = {kf_cur, kf_ini};
-  local_points_ = map_.points();
-  last_keyframe_frame_ = f.id;
-  last_ = f;
-  last_T_c_ref_ = Eigen::Isometry3d::Identity();
-  last_ok_ = true;
-  has_velocity_ = false;
-  initialized_ = true;
+  start_tracking(f, {kf_cur, kf_ini});
   init_reference_ = Frame();
   init_prev_matched_.clear();
   return true;

@@ -170,9 +170,14 @@ bool Tracker::initialize(Frame& f) {
     if (f.f().has_depth(i)) new_point(*kf, f, i);
   }
   map_.add_keyframe(kf);
-  reference_ = kf;
   f.reference = kf;
-  local_keyframes_ = {kf};
+  start_tracking(f, {kf});
+  return true;
+}
+
+void Tracker::start_tracking(const Frame& f, std::vector<std::shared_ptr<KeyFrame>> local_keyframes) {
+  reference_ = f.reference;
+  local_keyframes_ = std::move(local_keyframes);
   local_points_ = map_.points();
   last_keyframe_frame_ = f.id;
   last_ = f;
@@ -180,7 +185,6 @@ bool Tracker::initialize(Frame& f) {
   last_ok_ = true;
   has_velocity_ = false;
   initialized_ = true;
-  return true;
 }
 
 void Tracker::update_last_frame() {

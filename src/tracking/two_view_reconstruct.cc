@@ -9,6 +9,7 @@
 #include <functional>
 
 #include "dynaorb/tracking/two_view_initializer.h"
+#include "dynaorb/core/triangulation.h"
 
 namespace dynaorb::tracking::two_view {
 
@@ -106,16 +107,7 @@ bool triangulate(const Eigen::Vector2d& xn1, const Eigen::Vector2d& xn2, const E
   P1.leftCols<3>().setIdentity();
   P2.leftCols<3>() = R;
   P2.col(3) = t;
-  Eigen::Matrix4d A;
-  A.row(0) = xn1.x() * P1.row(2) - P1.row(0);
-  A.row(1) = xn1.y() * P1.row(2) - P1.row(1);
-  A.row(2) = xn2.x() * P2.row(2) - P2.row(0);
-  A.row(3) = xn2.y() * P2.row(2) - P2.row(1);
-  Eigen::JacobiSVD<Eigen::Matrix4d> svd(A, Eigen::ComputeFullV);
-  const Eigen::Vector4d Xh = svd.matrixV().col(3);
-  if (!(std::abs(Xh(3)) > 1e-12 * Xh.norm())) return false;
-  X = Xh.head<3>() / Xh(3);
-  return X.allFinite();
+  return triangulate_dlt(xn1, P1, xn2, P2, X);
 }
 
 MotionCheck check_motion(const Motion& m, const Eigen::Matrix3d& K, const Correspondences& c,

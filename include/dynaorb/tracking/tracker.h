@@ -138,6 +138,8 @@ class Tracker {
   bool can_initialize(const map::Frame& f) const;  // enough keypoints and depth for a map
   bool initialize(map::Frame& f);
   bool initialize_mono(map::Frame& f);  // mono_initialization.cc
+  // A new map was made from f (f.reference set): tracking starts from it.
+  void start_tracking(const map::Frame& f, std::vector<std::shared_ptr<map::KeyFrame>> local_keyframes);
   bool create_initial_map_mono(map::Frame& f, const std::vector<TwoViewMatch>& matches,
                                const TwoViewResult& two_view);
   bool track_motion_model(map::Frame& f);

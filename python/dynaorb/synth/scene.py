@@ -47,6 +47,16 @@ class Box:
         return self.moving and self.t_start <= t <= self.t_end
 
 
+def camera_pose(yaw: float, pitch: float, roll: float, position) -> np.ndarray:
+    """T_room_camera (4x4) from yaw (about y), then pitch (about x), then roll (about z)."""
+    r = cv2.Rodrigues(np.array([0.0, yaw, 0.0]))[0] @ cv2.Rodrigues(np.array([pitch, 0.0, 0.0]))[0] \
+        @ cv2.Rodrigues(np.array([0.0, 0.0, roll]))[0]
+    T = np.eye(4)
+    T[:3, :3] = r
+    T[:3, 3] = position
+    return T
+
+
 @dataclasses.dataclass
 class CameraPath:
     """A smooth forward path with gentle sway, bob and head rotation."""
@@ -66,12 +76,7 @@ class CameraPath:
         yaw = self.yaw * math.sin(2 * math.pi * t / 5.0 + 0.4)
         pitch = self.pitch * math.sin(2 * math.pi * t / 3.3)
         roll = self.roll * math.sin(2 * math.pi * t / 4.1)
-        r = cv2.Rodrigues(np.array([0.0, yaw, 0.0]))[0] @ cv2.Rodrigues(np.array([pitch, 0.0, 0.0]))[0] \
-            @ cv2.Rodrigues(np.array([0.0, 0.0, roll]))[0]
-        T = np.eye(4)
-        T[:3, :3] = r
-        T[:3, 3] = (x, y, z)
-        return T
+        return camera_pose(yaw, pitch, roll, (x, y, z))
 
 
 @dataclasses.dataclass
@@ -98,12 +103,7 @@ class LoopPath:
         yaw = heading + self.outward  # travelling counter-clockwise seen from above: outward is +yaw
         pitch = self.pitch * math.sin(2 * math.pi * t / 3.3)
         roll = self.roll * math.sin(2 * math.pi * t / 4.1)
-        r = cv2.Rodrigues(np.array([0.0, yaw, 0.0]))[0] @ cv2.Rodrigues(np.array([pitch, 0.0, 0.0]))[0] \
-            @ cv2.Rodrigues(np.array([0.0, 0.0, roll]))[0]
-        T = np.eye(4)
-        T[:3, :3] = r
-        T[:3, 3] = (x, y, z)
-        return T
+        return camera_pose(yaw, pitch, roll, (x, y, z))
 
 
 @dataclasses.dataclass
