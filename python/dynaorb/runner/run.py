@@ -20,6 +20,7 @@ import time
 import numpy as np
 
 from dynaorb import core
+from dynaorb.runner.frames import readable_frames
 from dynaorb.runner.masks import MaskFolder
 
 log = logging.getLogger(__name__)
@@ -196,19 +197,8 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
     per_frame_ms = []
     ok_frames = []  # frame indices tracked (state OK)
     mask_ages = []
-    frames = range(len(provider))
-    if opts.progress:
-        from tqdm import tqdm
-
-        frames = tqdm(frames, desc=f"{opts.kind} {pathlib.Path(opts.path).name}", unit="frame")
     start = time.perf_counter()
-    for i in frames:
-        try:
-            frame = provider.load(i)
-        except _core.InputError as exc:
-            skipped["unreadable"] += 1
-            log.warning("frame %d skipped: %s", i, exc)
-            continue
+    for i, frame in readable_frames(provider, skipped, opts.progress, f"{opts.kind} {pathlib.Path(opts.path).name}"):
         mask = masks.for_image(frame.image_path, frame.image.shape[:2]) if masks else None
         if semantic is not None:
             labels = semantic.labels_for(i, frame.image)

@@ -10,15 +10,13 @@ from __future__ import annotations
 
 import collections
 import json
-import logging
 import pathlib
 import statistics
 
 import cv2
 
+from dynaorb.runner.frames import readable_frames
 from dynaorb.segmentation.segmenter import Segmenter
-
-log = logging.getLogger(__name__)
 
 LABELS_FILE = "labels.json"
 
@@ -34,25 +32,13 @@ def segment_sequence(kind: str, path: str, segmenter: Segmenter, out: str | path
                      overwrite: bool = False, progress: bool = True) -> dict:
     from dynaorb import core
 
-    _core = core()
-    provider = _core.open_dataset(kind, path, None)
+    provider = core().open_dataset(kind, path, None)
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
     write_label_info(out, segmenter)
     counts = collections.Counter()
     ms = []
-    frames = range(len(provider))
-    if progress:
-        from tqdm import tqdm
-
-        frames = tqdm(frames, desc=f"segmenting {pathlib.Path(path).name}", unit="frame")
-    for i in frames:
-        try:
-            frame = provider.load(i)
-        except _core.InputError as exc:
-            counts["unreadable"] += 1
-            log.warning("frame %d skipped: %s", i, exc)
-            continue
+    for _, frame in readable_frames(provider, counts, progress, f"segmenting {pathlib.Path(path).name}"):
         target = out / pathlib.Path(frame.image_path).name
         if target.is_file() and not overwrite:
             counts["cached"] += 1
