@@ -36,6 +36,10 @@ struct FrameData {
   cv::Mat depth;   // CV_32FC1 metres, 0 = none (RGB-D: the sensor's depth; stereo: filled
                    //   by a stage that computes disparity, e.g. Li's SGBM), else empty
   cv::Mat labels;  // CV_8UC1 semantic class ids (0 = background) or empty: no network
+  // Movable-class regions from the labels (CV_8UC1 255 = a movable class,
+  // widened by the configured edge margin), empty without labels. Set by the
+  // semantic stage; later stages (and the next frame) read it.
+  cv::Mat candidates;
   // T_camera_world from SLAM once the frame is tracked (empty before, or when lost).
   std::optional<Eigen::Isometry3d> T_cw;
   cv::Mat dynamic;  // CV_8UC1 final dynamic mask of this frame (255 = dynamic), set by the filter
@@ -79,11 +83,8 @@ struct Context {
   Sensor sensor = Sensor::kStereo;
   std::shared_ptr<const map::Calibration> calib;
   FrameData& current;                         // stages may fill current.depth (stereo disparity)
+                                              //   and current.candidates (semantic stage)
   std::shared_ptr<const FrameData> previous;  // null on the first frame (or after a reset)
-  // Movable-class regions of the current frame from the semantic labels
-  // (CV_8UC1 255 = a movable class, with the configured edge margin), empty
-  // without labels. Set by the semantic stage; later stages read it.
-  cv::Mat candidates;
   // Regions decided dynamic so far (CV_8UC1 255): each stage ORs its own in.
   cv::Mat dynamic;
   // Shared motion cues (filled on demand by the filter before the first stage that asks).
