@@ -114,7 +114,7 @@ class Stage {
   // Whether the filter must compute TrackedPoint / EgoMotion for it.
   virtual bool needs_motion_cues() const { return false; }
   // Runs on one frame: ORs dynamic regions into ctx.dynamic (may read and
-  // write ctx.candidates), fills `report`. Must not throw on degenerate input
+  // write ctx.current.candidates), fills `report`. Must not throw on degenerate input
   // (no previous frame, no labels, too few points): it then marks nothing and
   // says why in report.values (e.g. "skipped_no_previous" = 1).
   virtual void process(Context& ctx, StageReport& report) = 0;
