@@ -143,7 +143,7 @@ OrbExtractor::OrbExtractor(const ExtractorSettings& settings) : settings_(settin
 }
 
 void OrbExtractor::extract(const cv::Mat& image, const cv::Mat& exclude,
-                           std::vector<cv::KeyPoint>& keypoints, cv::Mat& descriptors) {
+                           std::vector<cv::KeyPoint>& keypoints, cv::Mat& descriptors, ExcludedCount* count) {
   if (image.empty()) throw std::invalid_argument("OrbExtractor::extract: image is empty");
   if (image.type() != CV_8UC1)
     throw std::invalid_argument("OrbExtractor::extract: image must be CV_8UC1 (grayscale), got "
@@ -151,6 +151,10 @@ void OrbExtractor::extract(const cv::Mat& image, const cv::Mat& exclude,
   if (!exclude.empty() && (exclude.type() != CV_8UC1 || exclude.size() != image.size()))
     throw std::invalid_argument("OrbExtractor::extract: exclude mask must be empty or CV_8UC1 "
                                 "of the image size");
+  if (count) {
+    count->corners = count->keypoints = 0;
+    if (exclude.empty() || count->region.type() != CV_8UC1 || count->region.size() != image.size()) count = nullptr;
+  }
 
   // 1. Pyramid. Each level is resized from the previous one (bilinear), as
   // ORB-SLAM2 does, to the size of level 0 divided by s^i. Fresh buffers every
@@ -220,12 +224,25 @@ void OrbExtractor::extract(const cv::Mat& image, const cv::Mat& exclude,
     // 3a. Drop the corners whose level-0 position is excluded.
     const float sc = scale_[level];
     if (!exclude.empty()) {
-      auto excluded = [&](const cv::KeyPoint& k) {
-        const int u = std::clamp(cvRound(k.pt.x * sc), 0, exclude.cols - 1);
-        const int v = std::clamp(cvRound(k.pt.y * sc), 0, exclude.rows - 1);
-        return exclude.at<uchar>(v, u) != 0;
+      auto at = [&](const cv::Mat& m, const cv::KeyPoint& k) {
+        const int u = std::clamp(cvRound(k.pt.x * sc), 0, m.cols - 1);
+        const int v = std::clamp(cvRound(k.pt.y * sc), 0, m.rows - 1);
+        return m.at<uchar>(v, u) != 0;
       };
-      cand.erase(std::remove_if(cand.begin(), cand.end(), excluded), cand.end());
+      if (count) {
+        int dropped = 0;
+        for (const cv::KeyPoint& k : cand) dropped += at(exclude, k) && at(count->region, k);
+        count->corners += dropped;
+        if (dropped > 0) {
+          // What the level would have kept without the exclusion.
+          detail::distribute_quadtree(cand, static_cast<float>(b), static_cast<float>(max_x),
+                                      static_cast<float>(b), static_cast<float>(max_y),
+                                      features_per_level_[level], s.quadtree, s.keep);
+          for (int idx : s.keep) count->keypoints += at(count->region, cand[idx]);
+        }
+      }
+      cand.erase(std::remove_if(cand.begin(), cand.end(), [&](const cv::KeyPoint& k) { return at(exclude, k); }),
+                 cand.end());
     }
 
     // 3b. Quadtree distribution over the FAST area.

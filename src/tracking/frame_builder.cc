@@ -22,11 +22,11 @@ FrameBuilder::FrameBuilder(const Settings& settings, std::shared_ptr<const map::
 
 std::shared_ptr<map::Features> FrameBuilder::extract(features::OrbExtractor& extractor,
                                                      const cv::Mat& grey, const cv::Mat& exclude,
-                                                     StageTimes& t) {
+                                                     StageTimes& t, features::ExcludedCount* count) {
   auto f = std::make_shared<map::Features>();
   f->calib = calib_;
   const auto t0 = Clock::now();
-  extractor.extract(grey, exclude, f->keys, f->descriptors);
+  extractor.extract(grey, exclude, f->keys, f->descriptors, count);
   t["extract"] = ms_since(t0);
   f->u_right.assign(f->keys.size(), -1.0f);
   f->depth.assign(f->keys.size(), -1.0f);
@@ -46,14 +46,16 @@ void FrameBuilder::finish(map::Features& f) const {
 }
 
 std::shared_ptr<const map::Features> FrameBuilder::mono(const cv::Mat& grey, const cv::Mat& exclude,
-                                                        StageTimes& t, bool initializing) {
-  auto f = extract(initializing ? init_ : left_, grey, exclude, t);
+                                                        StageTimes& t, bool initializing,
+                                                        features::ExcludedCount* count) {
+  auto f = extract(initializing ? init_ : left_, grey, exclude, t, count);
   finish(*f);
   return f;
 }
 
 std::shared_ptr<const map::Features> FrameBuilder::stereo(const cv::Mat& left, const cv::Mat& right,
-                                                          const cv::Mat& exclude, StageTimes& t) {
+                                                          const cv::Mat& exclude, StageTimes& t,
+                                                          features::ExcludedCount* count) {
   auto f = std::make_shared<map::Features>();
   f->calib = calib_;
   std::vector<cv::KeyPoint> keys_r;
@@ -61,7 +63,7 @@ std::shared_ptr<const map::Features> FrameBuilder::stereo(const cv::Mat& left, c
   // The right image is extracted on a second thread while this one does the left.
   const auto t0 = Clock::now();
   auto right_job = std::async(std::launch::async, [&] { right_.extract(right, cv::Mat(), keys_r, desc_r); });
-  left_.extract(left, exclude, f->keys, f->descriptors);
+  left_.extract(left, exclude, f->keys, f->descriptors, count);
   right_job.get();
   t["extract"] = ms_since(t0);
 
@@ -79,8 +81,9 @@ std::shared_ptr<const map::Features> FrameBuilder::stereo(const cv::Mat& left, c
 }
 
 std::shared_ptr<const map::Features> FrameBuilder::rgbd(const cv::Mat& grey, const cv::Mat& depth,
-                                                        const cv::Mat& exclude, StageTimes& t) {
-  auto f = extract(left_, grey, exclude, t);
+                                                        const cv::Mat& exclude, StageTimes& t,
+                                                        features::ExcludedCount* count) {
+  auto f = extract(left_, grey, exclude, t, count);
   finish(*f);
   // Depth at the detected (distorted) pixel; the virtual right coordinate
   // from the undistorted one (ORB-SLAM2's ComputeStereoFromRGBD).

@@ -11,6 +11,18 @@
 
 namespace dynaorb::features {
 
+// What an exclusion cost inside one of its parts (the dynamic filter's mask
+// within the whole exclusion mask).
+struct ExcludedCount {
+  cv::Mat region;     // in: CV_8UC1 of the image size, non-zero = count here
+  int corners = 0;    // out: FAST corners (all levels) dropped inside `region`
+  // out: keypoints an extraction without the exclusion would have kept inside
+  // `region`: per level where corners were dropped there, the quadtree also
+  // distributes the level's corners as if nothing were excluded, and its
+  // keypoints inside `region` are counted.
+  int keypoints = 0;
+};
+
 class OrbExtractor {
  public:
   explicit OrbExtractor(const ExtractorSettings& settings);
@@ -19,9 +31,10 @@ class OrbExtractor {
   // non-zero pixels are dropped before the quadtree distribution, so the
   // feature budget goes to the rest of the image. Keypoints come in level-0
   // pixel coordinates with octave = pyramid level, angle in degrees, size =
-  // patch diameter at that level. descriptors: N x 32 CV_8U.
+  // patch diameter at that level. descriptors: N x 32 CV_8U. count
+  // (optional): what the exclusion cost inside count->region.
   void extract(const cv::Mat& image, const cv::Mat& exclude, std::vector<cv::KeyPoint>& keypoints,
-               cv::Mat& descriptors);
+               cv::Mat& descriptors, ExcludedCount* count = nullptr);
 
   // The pyramid of the last extracted image (level 0 = the image itself).
   const std::vector<cv::Mat>& pyramid() const { return pyramid_; }

@@ -22,18 +22,22 @@ class FrameBuilder {
   // get no keypoints. depth: CV_32F metres, 0 = no measurement.
   // initializing: while a monocular map is being initialised, twice the
   // features (ORB-SLAM2's mpIniORBextractor), for enough two-view matches.
+  // count (optional): what the exclusion cost inside count->region (the
+  // dynamic filter's mask) in the left / only image (OrbExtractor).
   std::shared_ptr<const map::Features> mono(const cv::Mat& grey, const cv::Mat& exclude, StageTimes& t,
-                                            bool initializing = false);
+                                            bool initializing = false, features::ExcludedCount* count = nullptr);
   std::shared_ptr<const map::Features> stereo(const cv::Mat& left, const cv::Mat& right,
-                                              const cv::Mat& exclude, StageTimes& t);
+                                              const cv::Mat& exclude, StageTimes& t,
+                                              features::ExcludedCount* count = nullptr);
   std::shared_ptr<const map::Features> rgbd(const cv::Mat& grey, const cv::Mat& depth,
-                                            const cv::Mat& exclude, StageTimes& t);
+                                            const cv::Mat& exclude, StageTimes& t,
+                                            features::ExcludedCount* count = nullptr);
 
   const std::shared_ptr<const map::Calibration>& calib() const { return calib_; }
 
  private:
   std::shared_ptr<map::Features> extract(features::OrbExtractor& extractor, const cv::Mat& grey,
-                                         const cv::Mat& exclude, StageTimes& t);
+                                         const cv::Mat& exclude, StageTimes& t, features::ExcludedCount* count);
   void finish(map::Features& f) const;  // undistortion and grid
 
   std::shared_ptr<const map::Calibration> calib_;

@@ -14,6 +14,7 @@
 // Without one, reference-keyframe matching is brute force and a lost frame
 // is tried against the reference keyframe only.
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -123,6 +124,12 @@ class Tracker {
   TrackOutcome track(map::Frame& frame);
   void reset();
   bool initialized() const { return initialized_; }
+  // The constant-velocity prediction of the next frame's T_cw (the motion
+  // model's starting pose); empty unless the last two frames were tracked.
+  std::optional<Eigen::Isometry3d> predicted_T_cw() const {
+    if (!last_ok_ || !has_velocity_) return std::nullopt;
+    return velocity_ * last_.T_cw;
+  }
   // The map was replaced (loaded from a file): lost, so that the next frame
   // is relocalised in it; a loaded map is never dropped as too small.
   void map_replaced();
