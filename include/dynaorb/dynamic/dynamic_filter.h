@@ -1,0 +1,138 @@
+#pragma once
+// The dynamic-object front end as one object: the configured stages run in
+// order on every frame before ORB extraction (stage.h). The filter owns what
+// the stages share: the previous frame, the last keyframes and the motion
+// cues (computed once per frame, when a stage asks for them).
+//
+// Preset file (OpenCV YAML, the ORB-SLAM2 settings style; config/dynamic/):
+//   Dynamic.stages: [semantic, dm]            every sensor, in this order; or
+//   Dynamic.stages: {rgbd: [semantic, dm, ddl], stereo: [semantic, dm, li], mono: [semantic, dm]}
+//                                             per sensor (a sensor not listed is refused)
+//   Dynamic.keyframes: 15                     keyframes remembered
+//   Dynamic.all_dynamic_fraction: 0.95        see DynamicFilterOptions
+//   Dynamic.motion_cues: {max_corners: 1000, ...}   MotionCueOptions
+//   Dynamic.inpainting: {depth_tolerance_m: 0.2, ...} InpaintOptions (System::dense_frame)
+//   Dynamic.semantic: {classes: voc, margin: 15, policy: drop}
+//   Dynamic.<stage>: {...}                    that stage's options (missing keys: defaults)
+// `Dynamic.stages: []` turns the filter off. Other keys (Camera.* ...) are
+// ignored, so a settings file may carry its preset.
+#include <Eigen/Geometry>
+#include <functional>
+#include <map>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "dynaorb/core/sensor.h"
+#include "dynaorb/dynamic/inpainting.h"
+#include "dynaorb/dynamic/motion_cues.h"
+#include "dynaorb/dynamic/stage.h"
+#include "dynaorb/map/calibration.h"
+
+namespace dynaorb::dynamic {
+
+struct DynamicFilterOptions {
+  std::string source;               // the preset file (messages); empty when built in code
+  std::vector<std::string> stages;  // in order, for every sensor; empty: off
+  std::map<Sensor, std::vector<std::string>> sensor_stages;  // replaces `stages` for that sensor
+  // The file's nodes Dynamic.<stage> (each stage's options); null: defaults.
+  std::shared_ptr<const cv::FileStorage> file;
+  MotionCueOptions motion_cues;
+  InpaintOptions inpainting;  // background inpainting of System::dense_frame
+  // DDL-SLAM Sec. III-D: the background is inpainted from "the last 15
+  // previous keyframes"; the multi-view check reads them too.
+  int keyframes = 15;
+  // Ours: a frame whose dynamic mask covers at least this share of the image
+  // counts as "all moving objects" (FilterResult::all_dynamic, counted by the System).
+  double all_dynamic_fraction = 0.95;
+  // Non-empty: the semantic stage's movable ids, whatever the preset says (the
+  // label source knows its label set: labels.json, a model card).
+  std::vector<int> movable_classes;
+
+  // Reads a preset file; InputError naming the file and the key for a missing
+  // Dynamic.stages, an unknown stage, an unknown Dynamic.* key, an unknown or
+  // ill-typed option of a stage, or a stage listed for a sensor it does not support.
+  static DynamicFilterOptions load(const std::string& path);
+  // The same from YAML text (`source` names it in messages).
+  static DynamicFilterOptions parse(const std::string& yaml, const std::string& source);
+
+  const std::vector<std::string>& stages_for(Sensor sensor) const;
+  bool enabled(Sensor sensor) const { return !stages_for(sensor).empty(); }
+  // Dynamic.<stage> of the file, or an empty node.
+  cv::FileNode stage_node(const std::string& stage) const;
+  // Throws InputError (naming the source, the stage and the sensor) when a
+  // stage of stages_for(sensor) is unknown or does not support the sensor, or
+  // when the preset lists stages per sensor and not for this one.
+  void validate(Sensor sensor) const;
+};
+
+// A stage from its options node (empty node: defaults). Throws InputError for bad options.
+using StageFactory = std::function<std::unique_ptr<Stage>(const cv::FileNode& options)>;
+// Adds (or replaces) a stage in the registry the filter builds its stages from.
+// The built-in stages (semantic, dm, stdyn, ddl, li) are there from the start.
+void register_stage(const std::string& name, StageFactory factory);
+std::vector<std::string> registered_stages();
+bool is_registered(const std::string& name);
+
+struct FilterResult {
+  cv::Mat mask;          // CV_8UC1 255 = dynamic (also FrameData::dynamic), image size
+  double fraction = 0;   // of the image
+  bool all_dynamic = false;  // fraction >= all_dynamic_fraction
+  // Wall time per stage ("<stage>", and "motion_cues" when computed), and the whole filter.
+  std::map<std::string, double> stage_ms;
+  double total_ms = 0;
+  std::map<std::string, StageReport> reports;  // by stage name
+  // Stages that failed with an exception on this frame (a bug, not bad
+  // input): their regions are left out, the frame goes on.
+  std::vector<std::string> failed;
+  bool motion_cues = false;    // computed for this frame
+  int tracked_points = 0;      // of the motion cues
+  bool ego_valid = false;
+  int ego_inliers = 0;
+};
+
+class DynamicFilter {
+ public:
+  // options.validate(sensor) first: InputError for a stage the sensor cannot run.
+  DynamicFilter(const DynamicFilterOptions& options, Sensor sensor,
+                std::shared_ptr<const map::Calibration> calib);
+
+  bool enabled() const { return !stages_.empty(); }
+  std::vector<std::string> stage_names() const;
+  Sensor sensor() const { return sensor_; }
+  const std::shared_ptr<const map::Calibration>& calib() const { return calib_; }
+
+  // Runs the stages on `current` (grey set; colour, right, depth, labels as
+  // the sensor has them) and sets current.dynamic. The filter keeps the
+  // frame's images (cv::Mat buffers shared, not copied): the caller must not
+  // write into them afterwards. T_cw_predicted: SLAM's constant-velocity
+  // prediction for this frame, if any.
+  FilterResult process(FrameData& current, const std::optional<Eigen::Isometry3d>& T_cw_predicted);
+  // After tracking the frame of the last process(): its pose (empty when lost).
+  // It becomes the previous frame of the next process() (also without this call).
+  void frame_tracked(const std::optional<Eigen::Isometry3d>& T_cw);
+  // The frame of the last process() became a keyframe with these keypoints
+  // (tracked-image pixels) and depths (metres, <= 0: none).
+  void keyframe_made(const std::vector<cv::Point2f>& keypoints, const std::vector<float>& depth);
+  // Forgets frames and keyframes (a SLAM reset); stages reset too.
+  void reset();
+
+  std::shared_ptr<const FrameData> last_frame() const;  // of the last process(); null before
+  const std::vector<KeyFrameData>& keyframes() const { return keyframes_; }  // newest last
+
+ private:
+  void settle_pending();  // the last processed frame becomes the previous one
+
+  DynamicFilterOptions o_;
+  Sensor sensor_;
+  std::shared_ptr<const map::Calibration> calib_;
+  std::vector<std::unique_ptr<Stage>> stages_;
+  std::shared_ptr<FrameData> pending_;          // processed, not yet told tracked
+  std::shared_ptr<const FrameData> previous_;
+  std::shared_ptr<FrameData> last_;             // of the last process(), tracked or not
+  std::vector<KeyFrameData> keyframes_;
+};
+
+}  // namespace dynaorb::dynamic

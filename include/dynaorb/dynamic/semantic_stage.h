@@ -1,0 +1,84 @@
+#pragma once
+// The semantic prior: which pixels a segmentation network says belong to a
+// movable class (people, vehicles, animals), widened by a margin at the mask
+// edges. Two policies, as the papers differ:
+//  - drop (DynaSLAM, STDyn-SLAM Sec. III-B, DDL-SLAM Sec. III-A): every
+//    movable-class pixel is dynamic, moving or not;
+//  - static_until_proven (DM-SLAM Sec. 3.2): movable-class regions are only
+//    candidates; a later stage (dm, ddl, ...) decides which of them move.
+// Both set ctx.current.candidates (CV_8UC1 255), which the shared motion cues
+// and later stages read.
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "dynaorb/dynamic/stage.h"
+
+namespace dynaorb::dynamic {
+
+// Movable classes of the label sets the segmentation models use (0 = background).
+// PASCAL VOC 2012 ids: the 14 classes DynaSLAM, STDyn-SLAM and DDL-SLAM (Sec.
+// III-A) treat as movable: aeroplane 1, bicycle 2, bird 3, boat 4, bus 6, car
+// 7, cat 8, cow 10, dog 12, horse 13, motorbike 14, person 15, sheep 17, train 19.
+const std::vector<int>& voc_movable_classes();
+// COCO: DM-SLAM Sec. 3.2.1's 20 potentially moving classes, as COCO category
+// ids (the annotation files' and torchvision Mask R-CNN's 1..90 numbering):
+// person 1, bicycle 2, car 3, motorcycle 4, airplane 5, bus 6, train 7, truck
+// 8, boat 9, bird 16, cat 17, dog 18, horse 19, sheep 20, cow 21, elephant 22,
+// bear 23, zebra 24, giraffe 25, frisbee 34.
+const std::vector<int>& coco_movable_classes();
+// Cityscapes train ids: person 11, rider 12, car 13, truck 14, bus 15,
+// train 16, motorcycle 17, bicycle 18.
+const std::vector<int>& cityscapes_movable_classes();
+
+struct SemanticOptions {
+  enum class Policy { kDrop, kStaticUntilProven };
+  // Key `classes`: voc | coco | cityscapes, or an explicit list of ids [15, 7].
+  std::string classes = "voc";  // the set's name, or "list" for explicit ids
+  std::vector<int> ids = voc_movable_classes();
+  // Key `margin`, px: movable regions widened by a disc of this radius. DM-SLAM
+  // Sec. 3.2.1 also discards "feature points that are too close to the edge of
+  // the regions" without a value; 15 px is the elliptic dilation of DynaSLAM's
+  // released code (dilation_size = 15), the masks STDyn-SLAM and DDL-SLAM
+  // inherit. 0: none.
+  int margin = 15;
+  // Key `policy`: drop | static_until_proven.
+  Policy policy = Policy::kDrop;
+
+  // Missing keys keep their defaults; a wrong type or value is an InputError
+  // naming the key.
+  void read(const cv::FileNode& node);
+};
+
+std::string to_string(SemanticOptions::Policy policy);
+
+class SemanticStage : public Stage {
+ public:
+  explicit SemanticStage(const SemanticOptions& options = {});
+  std::string name() const override { return "semantic"; }
+  bool supports(Sensor) const override { return true; }
+  // Marks nothing without labels (report "skipped_no_labels" = 1) or with
+  // labels of another size than the image ("skipped_bad_labels" = 1).
+  // Reports candidate_fraction (of the image), candidate_regions (connected
+  // movable regions after the margin) and, for drop, regions = those regions.
+  void process(Context& ctx, StageReport& report) override;
+
+  // The label source's own movable ids (a labels.json, a model card) replace
+  // the configured set: ids only mean something in the network's label set.
+  void set_movable_classes(const std::vector<int>& ids);
+  const SemanticOptions& options() const { return o_; }
+
+  // CV_8UC1 255 where labels (CV_8UC1 or CV_16UC1) hold a movable id, widened
+  // by the margin; empty for empty or unsupported labels.
+  cv::Mat candidates(const cv::Mat& labels) const;
+
+ private:
+  void build_lookup();
+
+  SemanticOptions o_;
+  cv::Mat lut8_;                  // 1x256 CV_8U: 255 for movable ids
+  std::vector<unsigned char> lut16_;  // 65536 entries, for 16-bit labels
+  cv::Mat disc_;                  // the margin's structuring element
+};
+
+}  // namespace dynaorb::dynamic

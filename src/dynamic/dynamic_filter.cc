@@ -1,0 +1,355 @@
+// The dynamic-object front end: presets, the stage registry, and the per-frame
+// run of the stages with the shared motion cues and the remembered frames.
+#include "dynaorb/dynamic/dynamic_filter.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <mutex>
+#include <opencv2/imgproc.hpp>
+#include <set>
+#include <sstream>
+
+#include "dynaorb/core/stopwatch.h"
+#include "dynaorb/dynamic/semantic_stage.h"
+#include "dynaorb/io/errors.h"
+#include "file_node_options.h"
+#include "stage_registry.h"
+
+namespace dynaorb::dynamic {
+
+namespace {
+
+std::mutex& registry_mutex() {
+  static std::mutex m;
+  return m;
+}
+
+std::map<std::string, StageFactory>& registry() {
+  static std::map<std::string, StageFactory> r = builtin_stages();
+  return r;
+}
+
+StageFactory factory_of(const std::string& name) {
+  std::lock_guard<std::mutex> lk(registry_mutex());
+  auto it = registry().find(name);
+  return it == registry().end() ? StageFactory() : it->second;
+}
+
+std::string joined(const std::vector<std::string>& v) {
+  std::string s;
+  for (const std::string& x : v) s += (s.empty() ? "" : ", ") + x;
+  return s;
+}
+
+const char* const kStagesKey = "Dynamic.stages";
+const char* const kKeyframesKey = "Dynamic.keyframes";
+const char* const kAllDynamicKey = "Dynamic.all_dynamic_fraction";
+const char* const kMotionCuesKey = "Dynamic.motion_cues";
+const char* const kInpaintingKey = "Dynamic.inpainting";
+const std::string kPrefix = "Dynamic.";
+
+// Whether `read` knows `key`: it is handed the key with a value no option
+// accepts (a map); reading a known key then fails on the type, an unknown
+// key is silently ignored. Works for every options struct read with
+// file_node_options.h (missing keys keep defaults, wrong types throw), so
+// the stages need not list their keys twice.
+bool reads_key(const std::function<void(const cv::FileNode&)>& read, const std::string& key) {
+  cv::FileStorage probe("%YAML:1.0\nprobe:\n  " + key + ": {dynaorb_probe: 0}\n",
+                        cv::FileStorage::READ | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
+  try {
+    read(probe["probe"]);
+  } catch (const std::exception&) {
+    return true;
+  }
+  return false;
+}
+
+// Checks the keys of one options node and reads it with `read`.
+void read_options(const cv::FileNode& node, const std::string& key, const std::string& source,
+                  const std::function<void(const cv::FileNode&)>& read) {
+  if (node.empty() || node.isNone()) return;
+  if (!node.isMap()) throw InputError(source, 0, "'" + key + "' must be a map of options ({name: value, ...})");
+  for (const std::string& k : node.keys())
+    if (!reads_key(read, k)) throw InputError(source, 0, "unknown option '" + key + "." + k + "'");
+  try {
+    read(node);
+  } catch (const InputError& e) {
+    throw InputError(source, 0, e.what());
+  } catch (const std::exception& e) {
+    throw InputError(source, 0, "'" + key + "': " + e.what());
+  }
+}
+
+std::vector<std::string> stage_list(const cv::FileNode& n, const std::string& key, const std::string& source) {
+  if (!n.isSeq()) throw InputError(source, 0, "'" + key + "' must be a list of stage names ([semantic, dm])");
+  std::vector<std::string> out;
+  for (const cv::FileNode& item : n) {
+    if (!item.isString()) throw InputError(source, 0, "'" + key + "' must be a list of stage names");
+    const std::string name = static_cast<std::string>(item);
+    if (!is_registered(name))
+      throw InputError(source, 0, "unknown stage '" + name + "' in '" + key + "' (known: " +
+                                      joined(registered_stages()) + ")");
+    if (std::find(out.begin(), out.end(), name) != out.end())
+      throw InputError(source, 0, "stage '" + name + "' is listed twice in '" + key + "'");
+    out.push_back(name);
+  }
+  // The shared motion cues and the later stages read the current frame's
+  // candidates, which the semantic stage sets.
+  auto sem = std::find(out.begin(), out.end(), "semantic");
+  if (sem != out.end() && sem != out.begin())
+    throw InputError(source, 0, "'" + key + "': the semantic stage must come first (later stages read its regions)");
+  return out;
+}
+
+std::unique_ptr<Stage> make_stage(const DynamicFilterOptions& o, const std::string& name) {
+  StageFactory make = factory_of(name);
+  if (!make) throw InputError(o.source.empty() ? "<dynamic options>" : o.source, 0, "unknown stage '" + name + "'");
+  try {
+    return make(o.stage_node(name));
+  } catch (const InputError& e) {
+    throw InputError(o.source.empty() ? "<dynamic options>" : o.source, 0, e.what());
+  }
+}
+
+DynamicFilterOptions from_storage(std::shared_ptr<cv::FileStorage> fs, const std::string& source) {
+  DynamicFilterOptions o;
+  o.source = source;
+  o.file = fs;
+  const cv::FileNode root = fs->root();
+  const cv::FileNode stages = root[kStagesKey];
+  if (stages.empty() || stages.isNone())
+    throw InputError(source, 0, std::string("missing key '") + kStagesKey + "' (the stages to run, [] for none)");
+  if (stages.isMap()) {
+    for (const std::string& k : stages.keys()) {
+      Sensor s;
+      try {
+        s = parse_sensor(k);
+      } catch (const std::exception&) {
+        throw InputError(source, 0, "unknown sensor '" + std::string(kStagesKey) + "." + k + "' (mono, stereo, rgbd)");
+      }
+      o.sensor_stages[s] = stage_list(stages[k], std::string(kStagesKey) + "." + k, source);
+    }
+  } else {
+    o.stages = stage_list(stages, kStagesKey, source);
+  }
+  for (const std::string& key : root.keys()) {
+    if (key.rfind(kPrefix, 0) != 0 || key == kStagesKey) continue;
+    const cv::FileNode n = root[key];
+    if (key == kKeyframesKey) {
+      if (!n.isInt() || static_cast<int>(n) < 0)
+        throw InputError(source, 0, "'" + key + "' must be an integer >= 0");
+      o.keyframes = static_cast<int>(n);
+    } else if (key == kAllDynamicKey) {
+      if ((!n.isReal() && !n.isInt()) || static_cast<double>(n) <= 0 || static_cast<double>(n) > 1)
+        throw InputError(source, 0, "'" + key + "' must be a number in (0, 1]");
+      o.all_dynamic_fraction = static_cast<double>(n);
+    } else if (key == kMotionCuesKey) {
+      read_options(n, key, source, [](const cv::FileNode& node) { MotionCueOptions().read(node); });
+      if (!n.empty() && !n.isNone()) o.motion_cues.read(n);
+    } else if (key == kInpaintingKey) {
+      read_options(n, key, source, [](const cv::FileNode& node) { InpaintOptions().read(node); });
+      if (!n.empty() && !n.isNone()) o.inpainting.read(n);
+    } else {
+      const std::string stage = key.substr(kPrefix.size());
+      StageFactory make = factory_of(stage);
+      if (!make)
+        throw InputError(source, 0, "unknown key '" + key + "' (stages: " + joined(registered_stages()) +
+                                        "; other keys: stages, keyframes, all_dynamic_fraction, motion_cues, inpainting)");
+      // Builds the stage once: its options are checked here, at load time.
+      read_options(n, key, source, [&make](const cv::FileNode& node) { make(node); });
+    }
+  }
+  // A stage listed for one sensor must run on it.
+  for (const auto& [sensor, list] : o.sensor_stages) o.validate(sensor);
+  return o;
+}
+
+}  // namespace
+
+void register_stage(const std::string& name, StageFactory factory) {
+  std::lock_guard<std::mutex> lk(registry_mutex());
+  registry()[name] = std::move(factory);
+}
+
+std::vector<std::string> registered_stages() {
+  std::lock_guard<std::mutex> lk(registry_mutex());
+  std::vector<std::string> names;
+  for (const auto& [name, f] : registry()) names.push_back(name);
+  return names;
+}
+
+bool is_registered(const std::string& name) { return static_cast<bool>(factory_of(name)); }
+
+DynamicFilterOptions DynamicFilterOptions::load(const std::string& path) {
+  if (!std::ifstream(path)) throw InputError(path, 0, "dynamic preset not found or not readable");
+  auto fs = std::make_shared<cv::FileStorage>();
+  try {
+    fs->open(path, cv::FileStorage::READ | cv::FileStorage::FORMAT_YAML);
+  } catch (const cv::Exception& e) {
+    throw InputError(path, 0, "not a valid OpenCV YAML file (" + e.msg + ")");
+  }
+  if (!fs->isOpened()) throw InputError(path, 0, "not a valid OpenCV YAML file");
+  return from_storage(fs, path);
+}
+
+DynamicFilterOptions DynamicFilterOptions::parse(const std::string& yaml, const std::string& source) {
+  std::string text = yaml;
+  if (text.rfind("%YAML", 0) != 0) text = "%YAML:1.0\n" + text;
+  auto fs = std::make_shared<cv::FileStorage>();
+  try {
+    fs->open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
+  } catch (const cv::Exception& e) {
+    throw InputError(source, 0, "not valid OpenCV YAML (" + e.msg + ")");
+  }
+  if (!fs->isOpened()) throw InputError(source, 0, "not valid OpenCV YAML");
+  return from_storage(fs, source);
+}
+
+const std::vector<std::string>& DynamicFilterOptions::stages_for(Sensor sensor) const {
+  auto it = sensor_stages.find(sensor);
+  return it != sensor_stages.end() ? it->second : stages;
+}
+
+cv::FileNode DynamicFilterOptions::stage_node(const std::string& stage) const {
+  if (!file) return cv::FileNode();
+  return (*file)[kPrefix + stage];
+}
+
+void DynamicFilterOptions::validate(Sensor sensor) const {
+  const std::string src = source.empty() ? "<dynamic options>" : source;
+  if (stages.empty() && !sensor_stages.empty() && !sensor_stages.count(sensor)) {
+    std::vector<std::string> have;
+    for (const auto& [s, list] : sensor_stages) have.push_back(to_string(s));
+    throw InputError(src, 0, "the preset has no stage list for the " + to_string(sensor) + " sensor (it has: " +
+                                 joined(have) + ")");
+  }
+  for (const std::string& name : stages_for(sensor)) {
+    if (!is_registered(name))
+      throw InputError(src, 0, "unknown stage '" + name + "' (known: " + joined(registered_stages()) + ")");
+    if (!make_stage(*this, name)->supports(sensor))
+      throw InputError(src, 0, "stage '" + name + "' does not support the " + to_string(sensor) + " sensor");
+  }
+}
+
+// ---------------------------------------------------------------- the filter
+
+DynamicFilter::DynamicFilter(const DynamicFilterOptions& options, Sensor sensor,
+                             std::shared_ptr<const map::Calibration> calib)
+    : o_(options), sensor_(sensor), calib_(std::move(calib)) {
+  o_.validate(sensor_);
+  for (const std::string& name : o_.stages_for(sensor_)) {
+    std::unique_ptr<Stage> stage = make_stage(o_, name);
+    if (auto* sem = dynamic_cast<SemanticStage*>(stage.get()); sem && !o_.movable_classes.empty())
+      sem->set_movable_classes(o_.movable_classes);
+    stages_.push_back(std::move(stage));
+  }
+}
+
+std::vector<std::string> DynamicFilter::stage_names() const {
+  std::vector<std::string> names;
+  for (const auto& s : stages_) names.push_back(s->name());
+  return names;
+}
+
+void DynamicFilter::settle_pending() {
+  if (pending_) previous_ = std::move(pending_);
+  pending_.reset();
+}
+
+FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eigen::Isometry3d>& T_cw_predicted) {
+  const auto t_start = Clock::now();
+  settle_pending();
+  FilterResult res;
+  current.dynamic.release();
+  current.candidates.release();
+  if (current.grey.empty() || current.grey.type() != CV_8UC1) {
+    // Nothing to look at: marks nothing, and is not remembered.
+    res.failed.push_back("no_image");
+    res.total_ms = ms_since(t_start);
+    return res;
+  }
+  const cv::Size size = current.grey.size();
+  // A previous frame of another size (a new camera after a reset) is no previous frame.
+  std::shared_ptr<const FrameData> previous =
+      previous_ && previous_->grey.size() == size ? previous_ : std::shared_ptr<const FrameData>();
+
+  Context ctx{sensor_, calib_, current, previous, cv::Mat::zeros(size, CV_8UC1), nullptr, nullptr,
+              T_cw_predicted, &keyframes_};
+  std::vector<TrackedPoint> tracked;
+  EgoMotion ego;
+  for (const auto& stage : stages_) {
+    const std::string name = stage->name();
+    if (stage->needs_motion_cues() && !res.motion_cues) {
+      const auto t0 = Clock::now();
+      if (previous && calib_) {
+        tracked = track_points(*previous, current, *calib_, sensor_, o_.motion_cues);
+        ego = estimate_ego_motion(tracked, *calib_, sensor_, o_.motion_cues);
+      }
+      ctx.tracked = &tracked;
+      ctx.ego = &ego;
+      res.motion_cues = true;
+      res.tracked_points = static_cast<int>(tracked.size());
+      res.ego_valid = ego.valid;
+      res.ego_inliers = ego.inliers;
+      res.stage_ms["motion_cues"] = ms_since(t0);
+    }
+    StageReport& report = res.reports[name];
+    const auto t0 = Clock::now();
+    const cv::Mat before = ctx.dynamic.clone();
+    try {
+      stage->process(ctx, report);
+    } catch (const std::exception& e) {
+      // A stage bug must not take SLAM down: its regions are dropped.
+      res.failed.push_back(name);
+      report.values["failed"] = 1;
+      ctx.dynamic = before;
+    }
+    if (ctx.dynamic.size() != size || ctx.dynamic.type() != CV_8UC1) {
+      res.failed.push_back(name);
+      report.values["failed"] = 1;
+      ctx.dynamic = before;
+    }
+    res.stage_ms[name] = ms_since(t0);
+  }
+  res.mask = ctx.dynamic;
+  res.fraction = cv::countNonZero(res.mask) / static_cast<double>(res.mask.total());
+  res.all_dynamic = res.fraction >= o_.all_dynamic_fraction;
+  current.dynamic = res.mask;
+  current.T_cw.reset();
+  pending_ = std::make_shared<FrameData>(current);
+  last_ = pending_;
+  res.total_ms = ms_since(t_start);
+  return res;
+}
+
+void DynamicFilter::frame_tracked(const std::optional<Eigen::Isometry3d>& T_cw) {
+  if (!pending_) return;
+  pending_->T_cw = T_cw;
+  settle_pending();
+}
+
+void DynamicFilter::keyframe_made(const std::vector<cv::Point2f>& keypoints, const std::vector<float>& depth) {
+  if (!last_ || o_.keyframes <= 0) return;
+  KeyFrameData kf;
+  kf.frame = last_;
+  kf.keypoints = keypoints;
+  kf.depth.resize(keypoints.size(), 0.0f);
+  for (size_t i = 0; i < keypoints.size() && i < depth.size(); ++i)
+    kf.depth[i] = std::isfinite(depth[i]) && depth[i] > 0 ? depth[i] : 0.0f;
+  keyframes_.push_back(std::move(kf));
+  if (static_cast<int>(keyframes_.size()) > o_.keyframes)
+    keyframes_.erase(keyframes_.begin(), keyframes_.end() - o_.keyframes);
+}
+
+void DynamicFilter::reset() {
+  pending_.reset();
+  previous_.reset();
+  last_.reset();
+  keyframes_.clear();
+  for (auto& s : stages_) s->reset();
+}
+
+std::shared_ptr<const FrameData> DynamicFilter::last_frame() const { return last_; }
+
+}  // namespace dynaorb::dynamic
