@@ -6,6 +6,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "dynaorb/dynamic/inpainting.h"
 #include "dynaorb/io/errors.h"
 #include "dynaorb/map/frame.h"
 #include "dynaorb/map/map.h"
@@ -39,6 +40,20 @@ std::string to_string(RejectReason reason) {
 namespace {
 
 std::string size_text(const cv::Size& s) { return std::to_string(s.width) + "x" + std::to_string(s.height); }
+
+// BGR copy of a 3- or 4-channel 8-bit image (the dynamic filter's colour, for
+// inpainting and the dense map); empty for grey or unusable input.
+cv::Mat to_bgr(const cv::Mat& in, bool rgb_order) {
+  cv::Mat bgr;
+  if (in.depth() != CV_8U) return bgr;
+  if (in.channels() == 3) {
+    if (rgb_order) cv::cvtColor(in, bgr, cv::COLOR_RGB2BGR);
+    else bgr = in.clone();
+  } else if (in.channels() == 4) {
+    cv::cvtColor(in, bgr, rgb_order ? cv::COLOR_RGBA2BGR : cv::COLOR_BGRA2BGR);
+  }
+  return bgr;
+}
 
 // Grey image from an 8-bit grey / 3- or 4-channel image; false when the type is unusable.
 bool to_grey(const cv::Mat& in, bool rgb_order, cv::Mat& grey) {
@@ -87,8 +102,17 @@ struct System::Impl {
   // Per-frame working images after preprocessing.
   cv::Mat grey, grey_right, depth_m, mask;
 
+  // The dynamic-object front end (built with the core; null when off). Its
+  // per-frame images: the input's colour (BGR) and the label image, both in
+  // the tracked image's pixels.
+  std::unique_ptr<dynamic::DynamicFilter> filter;
+  cv::Mat colour, labels;
+  cv::Mat unrectify_map;  // input pixel -> rectified pixel (CV_32FC2), for last_dynamic_mask()
+  bool dynamic_on() const { return options.dynamic.enabled(sensor); }
+
   Impl(const Settings& s, Sensor k, const SystemOptions& o) : settings(s), sensor(k), options(o) {
     settings.validate(sensor);
+    options.dynamic.validate(sensor);  // a stage the sensor cannot run: refused now, not at the first frame
     if (options.vocabulary && options.vocabulary->empty())
       throw InputError("the vocabulary is empty (load or train one, or pass none)");
     if (settings.camera.width > 0 && settings.camera.height > 0)
@@ -130,6 +154,7 @@ struct System::Impl {
     if (settings.camera.fps > 0) t.max_frames = static_cast<int>(std::lround(settings.camera.fps));
     tracker = std::make_unique<tracking::Tracker>(map, *mapper, sensor, t, options.vocabulary, database.get());
     tracker->set_localization_mode(options.localization_only);
+    if (dynamic_on()) filter = std::make_unique<dynamic::DynamicFilter>(options.dynamic, sensor, calib);
   }
 
   // Output pose of the input camera in the world of the first input camera.
@@ -162,6 +187,16 @@ struct System::Impl {
                                               : "not enough keypoints with depth to initialise")
                   : frame.size() == 0 ? "tracking lost: no keypoints (textureless or fully masked image)"
                                       : "tracking lost";
+    }
+    if (filter) {
+      filter->frame_tracked(out.ok ? std::optional<Eigen::Isometry3d>(frame.T_cw) : std::nullopt);
+      if (out.keyframe) {
+        const map::Features& f = frame.f();
+        std::vector<cv::Point2f> pts;
+        pts.reserve(f.keys.size());
+        for (const cv::KeyPoint& k : f.keys) pts.push_back(k.pt);
+        filter->keyframe_made(pts, f.depth);
+      }
     }
     if (out.keyframe) {
       mapper->insert_keyframe(out.keyframe);
@@ -211,6 +246,13 @@ struct System::Impl {
       r = reject(r, RejectReason::kWrongType, std::string(what) + " image must be 8-bit with 1, 3 or 4 channels");
       return false;
     }
+    colour.release();
+    labels.release();
+    if (dynamic_on()) {
+      colour = to_bgr(image, settings.camera.rgb);
+      // The filter keeps the frame's images: never the caller's buffer.
+      if (grey.data == image.data) grey = grey.clone();
+    }
     return true;
   }
 
@@ -225,6 +267,24 @@ struct System::Impl {
     r.mask_used = true;
   }
 
+  // Label ids for the dynamic filter, in the tracked image's pixels: 8-bit,
+  // 16-bit ids above 255 saturated (still "some class", never a movable VOC /
+  // COCO / Cityscapes id). Ignored when the filter is off.
+  void accept_labels(const cv::Mat& l, const cv::Size& size, TrackResult& r) {
+    labels.release();
+    if (l.empty() || !dynamic_on()) return;
+    if (l.size() != size || l.channels() != 1 || (l.depth() != CV_8U && l.depth() != CV_16U)) {
+      ++counters.labels_dropped;
+      return;
+    }
+    cv::Mat ids;
+    if (l.depth() == CV_8U) ids = l.clone();
+    else l.convertTo(ids, CV_8U);
+    if (!rect_map_l1.empty()) cv::remap(ids, labels, rect_map_l1, rect_map_l2, cv::INTER_NEAREST);
+    else labels = ids;
+    r.labels_used = true;
+  }
+
   // Extraction exclusion mask in the tracked image (rectified for stereo).
   cv::Mat exclusion() const {
     if (mask.empty() || rect_map_l1.empty()) return mask;
@@ -233,18 +293,59 @@ struct System::Impl {
     return m;
   }
 
+  // Runs the dynamic filter on the preprocessed frame; returns its mask (empty when off).
+  cv::Mat run_filter(double stamp, TrackResult& r) {
+    if (!filter) return cv::Mat();
+    dynamic::FrameData fd;
+    fd.id = next_frame_id;
+    fd.stamp = stamp;
+    fd.grey = grey;
+    fd.colour = colour;
+    if (sensor == Sensor::kStereo) fd.right = grey_right;
+    if (sensor == Sensor::kRGBD) fd.depth = depth_m;
+    fd.labels = labels;
+    const dynamic::FilterResult res = filter->process(fd, tracker->predicted_T_cw());
+    r.stage_ms["dynamic"] = res.total_ms;
+    for (const auto& [stage, ms] : res.stage_ms) r.stage_ms["dynamic." + stage] = ms;
+    r.dynamic_fraction = res.fraction;
+    for (const auto& [stage, rep] : res.reports) {
+      r.dynamic_values[stage + ".dynamic_points"] = static_cast<double>(rep.dynamic_points.size());
+      r.dynamic_values[stage + ".static_points"] = static_cast<double>(rep.static_points.size());
+      r.dynamic_values[stage + ".regions"] = rep.regions;
+      for (const auto& [k, v] : rep.values) r.dynamic_values[stage + "." + k] = v;
+    }
+    if (res.motion_cues) {
+      r.dynamic_values["motion_cues.tracked_points"] = res.tracked_points;
+      r.dynamic_values["motion_cues.ego_valid"] = res.ego_valid ? 1 : 0;
+      r.dynamic_values["motion_cues.ego_inliers"] = res.ego_inliers;
+    }
+    if (res.all_dynamic) ++counters.dynamic_all_frames;
+    counters.dynamic_stage_failures += static_cast<long>(res.failed.size());
+    return res.mask;
+  }
+
   TrackResult finish(TrackResult r, double stamp, Clock::time_point start) {
     r.stage_ms["preprocess"] = ms_since(start);
     if (expected_size.area() == 0) expected_size = grey.size();
     last_stamp = stamp;
     ensure_core(grey.size());
+    const cv::Mat dynamic_mask = run_filter(stamp, r);
+    cv::Mat exclude = exclusion();
+    features::ExcludedCount count;
+    features::ExcludedCount* counting = nullptr;
+    if (!dynamic_mask.empty() && cv::countNonZero(dynamic_mask) > 0) {
+      exclude = exclude.empty() ? dynamic_mask : (exclude | dynamic_mask);
+      count.region = dynamic_mask;
+      counting = &count;
+    }
     tracking::StageTimes t;
     std::shared_ptr<const map::Features> f;
     switch (sensor) {
-      case Sensor::kMono: f = builder->mono(grey, exclusion(), t, !tracker->initialized()); break;
-      case Sensor::kStereo: f = builder->stereo(grey, grey_right, exclusion(), t); break;
-      case Sensor::kRGBD: f = builder->rgbd(grey, depth_m, exclusion(), t); break;
+      case Sensor::kMono: f = builder->mono(grey, exclude, t, !tracker->initialized(), counting); break;
+      case Sensor::kStereo: f = builder->stereo(grey, grey_right, exclude, t, counting); break;
+      case Sensor::kRGBD: f = builder->rgbd(grey, depth_m, exclude, t, counting); break;
     }
+    r.dynamic_keypoints = count.keypoints;
     r.stage_ms.insert(t.begin(), t.end());
     track_features(std::move(f), stamp, r);
     state = r.state;
@@ -263,6 +364,20 @@ struct System::Impl {
     records.clear();
     state = TrackingState::kNoImagesYet;
     last_stamp = -INFINITY;
+    if (filter) filter->reset();
+  }
+
+  // Input pixel -> rectified pixel of the left camera (stereo with rectification).
+  const cv::Mat& unrectify() {
+    if (!unrectify_map.empty() || rect_map_l1.empty()) return unrectify_map;
+    const StereoRectification& q = settings.rectification;
+    std::vector<cv::Point2f> px, out;
+    px.reserve(static_cast<size_t>(q.width) * q.height);
+    for (int v = 0; v < q.height; ++v)
+      for (int u = 0; u < q.width; ++u) px.emplace_back(static_cast<float>(u), static_cast<float>(v));
+    cv::undistortPoints(px, out, q.K_l, q.D_l, q.R_l, q.P_l);
+    unrectify_map = cv::Mat(q.height, q.width, CV_32FC2, out.data()).clone();
+    return unrectify_map;
   }
 };
 
@@ -270,17 +385,19 @@ System::System(const Settings& settings, Sensor sensor, const SystemOptions& opt
     : impl_(std::make_unique<Impl>(settings, sensor, options)) {}
 System::~System() = default;
 
-TrackResult System::track_mono(const cv::Mat& image, double stamp, const cv::Mat& mask) {
+TrackResult System::track_mono(const cv::Mat& image, double stamp, const cv::Mat& mask, const cv::Mat& labels) {
   Impl& s = *impl_;
   s.begin_frame(Sensor::kMono, "track_mono");
   const auto start = Clock::now();
   TrackResult r;
   if (!s.accept_image(image, stamp, r, "mono")) return r;
   s.accept_mask(mask, image.size(), r);
+  s.accept_labels(labels, image.size(), r);
   return s.finish(r, stamp, start);
 }
 
-TrackResult System::track_stereo(const cv::Mat& left, const cv::Mat& right, double stamp, const cv::Mat& mask) {
+TrackResult System::track_stereo(const cv::Mat& left, const cv::Mat& right, double stamp, const cv::Mat& mask,
+                                 const cv::Mat& labels) {
   Impl& s = *impl_;
   s.begin_frame(Sensor::kStereo, "track_stereo");
   const auto start = Clock::now();
@@ -300,14 +417,22 @@ TrackResult System::track_stereo(const cv::Mat& left, const cv::Mat& right, doub
     s.grey = rectified_left;
     cv::remap(s.grey_right, rectified_right, s.rect_map_r1, s.rect_map_r2, cv::INTER_LINEAR);
     s.grey_right = rectified_right;
+    if (!s.colour.empty()) {
+      cv::Mat rectified_colour;
+      cv::remap(s.colour, rectified_colour, s.rect_map_l1, s.rect_map_l2, cv::INTER_LINEAR);
+      s.colour = rectified_colour;
+    }
   } else {
     s.grey = left_grey;
+    if (s.dynamic_on() && s.grey_right.data == right.data) s.grey_right = s.grey_right.clone();
   }
   s.accept_mask(mask, left.size(), r);
+  s.accept_labels(labels, left.size(), r);
   return s.finish(r, stamp, start);
 }
 
-TrackResult System::track_rgbd(const cv::Mat& image, const cv::Mat& depth, double stamp, const cv::Mat& mask) {
+TrackResult System::track_rgbd(const cv::Mat& image, const cv::Mat& depth, double stamp, const cv::Mat& mask,
+                               const cv::Mat& labels) {
   Impl& s = *impl_;
   s.begin_frame(Sensor::kRGBD, "track_rgbd");
   const auto start = Clock::now();
@@ -320,12 +445,14 @@ TrackResult System::track_rgbd(const cv::Mat& image, const cv::Mat& depth, doubl
   if (depth.channels() != 1 || (depth.depth() != CV_16U && depth.depth() != CV_32F))
     return s.reject(r, RejectReason::kWrongType, "depth image must be 16UC1 or 32FC1");
   const double factor = *s.settings.camera.depth_map_factor;
+  s.depth_m.release();  // a new buffer every frame: the dynamic filter keeps the last ones
   depth.convertTo(s.depth_m, CV_32F, 1.0 / factor);
   // NaN, infinite, zero and negative depths are "no measurement": set to 0 and counted.
   cv::Mat valid = (s.depth_m > 0.0f) & (s.depth_m < std::numeric_limits<float>::infinity());
   r.invalid_depth_pixels = static_cast<int>(s.depth_m.total()) - cv::countNonZero(valid);
   s.depth_m.setTo(0.0f, ~valid);
   s.accept_mask(mask, image.size(), r);
+  s.accept_labels(labels, image.size(), r);
   return s.finish(r, stamp, start);
 }
 
@@ -407,6 +534,7 @@ void System::load_map(const std::string& path) {
     s.tracker->map_replaced();
   }
   s.mapper->clear_queue();  // forgets the old map's recent points
+  if (s.filter) s.filter->reset();  // its keyframes' poses belong to the old map
   s.records.clear();
   s.state = TrackingState::kLost;
   s.last_stamp = -INFINITY;
@@ -422,5 +550,50 @@ void System::set_localization_mode(bool on) {
 }
 
 bool System::localization_mode() const { return impl_->options.localization_only; }
+
+bool System::dynamic_filter_enabled() const { return impl_->dynamic_on(); }
+
+cv::Mat System::last_dynamic_mask() const {
+  Impl& s = *impl_;
+  if (!s.filter || !s.filter->last_frame()) return cv::Mat();
+  const cv::Mat& m = s.filter->last_frame()->dynamic;
+  if (m.empty() || s.rect_map_l1.empty()) return m.clone();
+  cv::Mat out;
+  cv::remap(m, out, s.unrectify(), cv::noArray(), cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
+  return out;
+}
+
+DenseFrame System::dense_frame(bool inpaint) const {
+  const Impl& s = *impl_;
+  DenseFrame d;
+  if (!s.filter || !s.filter->last_frame() || !s.builder) return d;
+  const dynamic::FrameData& f = *s.filter->last_frame();
+  const map::Calibration& calib = *s.builder->calib();
+  d.stamp = f.stamp;
+  d.fx = calib.fx;
+  d.fy = calib.fy;
+  d.cx = calib.cx;
+  d.cy = calib.cy;
+  d.dist = calib.dist.empty() ? cv::Mat() : calib.dist.clone();
+  d.dynamic = f.dynamic.clone();
+  // The camera of the tracked pixels in the output world (the first input
+  // camera): T_rect_input^-1 * T_cw^-1 (for mono / RGB-D T_rect_input = I).
+  if (f.T_cw) d.T_wc = s.T_rect_input.inverse() * f.T_cw->inverse();
+  if (inpaint && f.T_cw && cv::countNonZero(f.dynamic) > 0) {
+    const dynamic::InpaintResult in =
+        dynamic::inpaint_background(f, s.filter->keyframes(), calib, s.options.dynamic.inpainting);
+    if (!in.colour.empty()) d.colour = in.colour;
+    else if (!in.grey.empty()) cv::cvtColor(in.grey, d.colour, cv::COLOR_GRAY2BGR);
+    if (!f.depth.empty()) d.depth = in.depth;
+    d.inpainted = true;
+    d.inpainted_pixels = in.filled_pixels;
+  }
+  if (d.colour.empty()) {
+    if (!f.colour.empty()) d.colour = f.colour.clone();
+    else cv::cvtColor(f.grey, d.colour, cv::COLOR_GRAY2BGR);
+  }
+  if (d.depth.empty() && !f.depth.empty()) d.depth = f.depth.clone();
+  return d;
+}
 
 }  // namespace dynaorb

@@ -10,6 +10,7 @@
 
 #include "dynaorb/core/pose.h"
 #include "dynaorb/core/sensor.h"
+#include "dynaorb/dynamic/dynamic_filter.h"
 #include "dynaorb/io/settings.h"
 #include "dynaorb/loop/loop_closer.h"
 #include "dynaorb/mapping/local_mapper.h"
@@ -48,6 +49,35 @@ struct TrackResult {
   bool new_keyframe = false;
   std::string method;                        // init / motion_model / reference_keyframe /
                                              // relocalization / lost
+  // The dynamic-object front end (SystemOptions::dynamic), when on. Its
+  // times are in stage_ms: "dynamic" (the whole filter), "dynamic.<stage>"
+  // and "dynamic.motion_cues".
+  bool labels_used = false;                  // a valid label image came with the frame
+  // Keypoints the filter's mask kept out of tracking: those an extraction
+  // without the mask would have kept inside it (features::ExcludedCount).
+  int dynamic_keypoints = 0;
+  double dynamic_fraction = 0;               // share of the image the filter marked dynamic
+  // The stages' reports: "<stage>.dynamic_points", "<stage>.static_points",
+  // "<stage>.regions" and "<stage>.<value>" for each of its values; plus
+  // "motion_cues.tracked_points", "motion_cues.ego_inliers", "motion_cues.ego_valid".
+  std::map<std::string, double> dynamic_values;
+};
+
+// The last frame for a dense map (ROS cloud, OctoMap): colour, depth and the
+// dynamic mask in the tracked image's pixels (the rectified left image for
+// stereo), with that camera's intrinsics and pose.
+struct DenseFrame {
+  double stamp = 0;
+  cv::Mat colour;    // CV_8UC3 BGR; the grey image as BGR when the input was grey
+  cv::Mat depth;     // CV_32FC1 metres, 0 = none (RGB-D depth, or stereo depth a stage computed); may be empty
+  cv::Mat dynamic;   // CV_8UC1 255 = dynamic; zeros when the filter is off
+  // The camera of these pixels in the world of trajectory(); empty when the
+  // frame was not tracked. For rectified stereo: the rectified left camera.
+  std::optional<Pose> T_wc;
+  double fx = 0, fy = 0, cx = 0, cy = 0;
+  cv::Mat dist;      // distortion of these pixels (empty: none)
+  bool inpainted = false;   // dynamic pixels filled from the remembered keyframes
+  int inpainted_pixels = 0; // dynamic pixels that got a background colour
 };
 
 struct SystemOptions {
@@ -72,6 +102,11 @@ struct SystemOptions {
   loop::LoopCloserOptions loop;
   // Localisation only from the start (see System::set_localization_mode).
   bool localization_only = false;
+  // The dynamic-object front end (dynamic/dynamic_filter.h): stages run on
+  // every frame before ORB extraction and no keypoint is extracted in the
+  // regions they mark. No stage for the sensor (the default): off, and the
+  // System behaves as without it. A stage the sensor cannot run: InputError.
+  dynamic::DynamicFilterOptions dynamic;
 };
 
 struct MapSummary {
@@ -86,6 +121,9 @@ struct SystemCounters {
   long rejected = 0;        // frames refused (see rejected_by_reason)
   long tracked = 0;         // frames with state kOk
   long masks_dropped = 0;   // masks ignored because of a wrong size or type
+  long labels_dropped = 0;  // label images ignored because of a wrong size or type
+  long dynamic_all_frames = 0;      // frames the filter marked (nearly) all dynamic
+  long dynamic_stage_failures = 0;  // stage runs that threw (their regions dropped)
   long lost = 0;            // frames with state kLost
   long initializations = 0; // map (re)initialisations
   long relocalizations = 0; // lost frames found again in the map (needs a vocabulary)
@@ -107,12 +145,16 @@ class System {
   // DepthMapFactor) or 32FC1 metres. `mask` (optional): 8-bit, same size as
   // the image, non-zero marks pixels whose keypoints stay out of tracking and
   // mapping (a label image is accepted: any non-zero label is "masked" unless
-  // the dynamic front end decides otherwise).
-  TrackResult track_mono(const cv::Mat& image, double stamp, const cv::Mat& mask = cv::Mat());
+  // the dynamic front end decides otherwise). `labels` (optional): the
+  // segmentation network's class ids for the dynamic filter (CV_8UC1, or
+  // CV_16UC1 with ids above 255 saturated to 255), same size as the image;
+  // ignored when the filter is off, counted and dropped when of a wrong size or type.
+  TrackResult track_mono(const cv::Mat& image, double stamp, const cv::Mat& mask = cv::Mat(),
+                         const cv::Mat& labels = cv::Mat());
   TrackResult track_stereo(const cv::Mat& left, const cv::Mat& right, double stamp,
-                           const cv::Mat& mask = cv::Mat());
+                           const cv::Mat& mask = cv::Mat(), const cv::Mat& labels = cv::Mat());
   TrackResult track_rgbd(const cv::Mat& image, const cv::Mat& depth, double stamp,
-                         const cv::Mat& mask = cv::Mat());
+                         const cv::Mat& mask = cv::Mat(), const cv::Mat& labels = cv::Mat());
 
   Sensor sensor() const;
   const Settings& settings() const;
@@ -133,6 +175,15 @@ class System {
   // be this system's (InputError naming the file otherwise, the map kept).
   void save_map(const std::string& path);
   void load_map(const std::string& path);
+  // The dynamic filter's mask of the last frame, in the input image's pixels
+  // (un-rectified for stereo); empty when the filter is off or before a frame.
+  cv::Mat last_dynamic_mask() const;
+  // The last frame for a dense map; inpaint: its dynamic pixels filled with
+  // the background seen by the remembered keyframes (DDL-SLAM Sec. III-D).
+  // Empty colour before a frame was processed.
+  DenseFrame dense_frame(bool inpaint = false) const;
+  bool dynamic_filter_enabled() const;
+
   // Localisation only (ORB-SLAM2): tracking in the map, no new keyframes or points.
   void set_localization_mode(bool on);
   bool localization_mode() const;
