@@ -10,6 +10,7 @@
 #include <cstring>
 #include <opencv2/imgproc.hpp>
 
+#include "dynaorb/dynamic/dynamic_filter.h"
 #include "dynaorb/features/orb_extractor.h"
 #include "dynaorb/io/dataset.h"
 #include "dynaorb/io/errors.h"
@@ -122,6 +123,18 @@ std::shared_ptr<const vocab::Vocabulary> vocabulary_from(const py::object& obj) 
   const std::string path = path_of(obj);
   py::gil_scoped_release release;
   return std::make_shared<const vocab::Vocabulary>(vocab::Vocabulary::load_any(path));
+}
+
+// System's dynamic argument: None (off), a DynamicFilterOptions, or a preset path.
+dynamic::DynamicFilterOptions dynamic_from(const py::object& obj) {
+  if (obj.is_none()) return {};
+  if (py::isinstance<dynamic::DynamicFilterOptions>(obj)) return obj.cast<dynamic::DynamicFilterOptions>();
+  return dynamic::DynamicFilterOptions::load(path_of(obj));
+}
+
+py::object pose_or_none(const std::optional<Pose>& p) {
+  if (!p) return py::none();
+  return py::cast(Eigen::Matrix4d(p->matrix()));
 }
 
 }  // namespace
@@ -266,6 +279,31 @@ PYBIND11_MODULE(_core, m) {
       "ORB keypoints (N, 4: x, y, level, angle in degrees) and descriptors (N, 32) uint8 from the "
       "System's extractor with the settings' ORBextractor parameters (no undistortion).");
 
+  py::class_<dynamic::DynamicFilterOptions>(
+      m, "DynamicFilterOptions",
+      "The dynamic-object front end's preset: stages in order, per sensor, with their options\n"
+      "(config/dynamic/*.yaml; see include/dynaorb/dynamic/dynamic_filter.h).")
+      .def(py::init<>(), "Off: no stage.")
+      .def_static("load", [](const py::object& path) { return dynamic::DynamicFilterOptions::load(path_of(path)); },
+                  py::arg("path"), "Reads a preset file (InputError naming the file and key when it is wrong).")
+      .def_static("parse", &dynamic::DynamicFilterOptions::parse, py::arg("yaml"), py::arg("source") = "<text>",
+                  "Reads a preset from YAML text.")
+      .def_readonly("source", &dynamic::DynamicFilterOptions::source)
+      .def("stages_for", [](const dynamic::DynamicFilterOptions& o, const std::string& sensor) {
+        return o.stages_for(parse_sensor(sensor));
+      }, py::arg("sensor"), "The stage names that run for this sensor, in order.")
+      .def("enabled", [](const dynamic::DynamicFilterOptions& o, const std::string& sensor) {
+        return o.enabled(parse_sensor(sensor));
+      }, py::arg("sensor"))
+      .def("validate", [](const dynamic::DynamicFilterOptions& o, const std::string& sensor) {
+        o.validate(parse_sensor(sensor));
+      }, py::arg("sensor"), "InputError when a stage is unknown or does not support the sensor.")
+      .def_readwrite("keyframes", &dynamic::DynamicFilterOptions::keyframes)
+      .def_readwrite("all_dynamic_fraction", &dynamic::DynamicFilterOptions::all_dynamic_fraction)
+      .def_readwrite("movable_classes", &dynamic::DynamicFilterOptions::movable_classes,
+                     "Non-empty: the semantic stage's movable class ids (the label source's own set).");
+  m.def("dynamic_stages", &dynamic::registered_stages, "Names of the dynamic-filter stages a preset may list.");
+
   py::class_<TrackResult>(m, "TrackResult")
       .def_property_readonly("state", [](const TrackResult& r) { return to_string(r.state); })
       .def_property_readonly("rejected", [](const TrackResult& r) { return to_string(r.rejected); })
@@ -280,58 +318,74 @@ PYBIND11_MODULE(_core, m) {
       .def_readonly("keypoints", &TrackResult::keypoints)
       .def_readonly("tracked_points", &TrackResult::tracked_points)
       .def_readonly("new_keyframe", &TrackResult::new_keyframe)
-      .def_readonly("method", &TrackResult::method);
+      .def_readonly("method", &TrackResult::method)
+      .def_readonly("labels_used", &TrackResult::labels_used)
+      .def_readonly("dynamic_keypoints", &TrackResult::dynamic_keypoints,
+                    "Keypoints the dynamic filter's mask kept out (those an extraction without it kept there).")
+      .def_readonly("dynamic_fraction", &TrackResult::dynamic_fraction)
+      .def_readonly("dynamic_values", &TrackResult::dynamic_values,
+                    "The stages' reports: '<stage>.<value>' -> number.");
 
   py::class_<System>(m, "System")
       .def(py::init([](const Settings& s, const std::string& sensor, bool synchronous_mapping,
-                       const py::object& vocabulary, bool loop_closing, bool global_ba) {
+                       const py::object& vocabulary, bool loop_closing, bool global_ba, const py::object& dyn) {
              SystemOptions o;
              o.synchronous_mapping = synchronous_mapping;
              o.vocabulary = vocabulary_from(vocabulary);
              o.loop_closing = loop_closing;
              o.loop.global_ba = global_ba;
+             o.dynamic = dynamic_from(dyn);
              return std::make_unique<System>(s, parse_sensor(sensor), o);
            }),
            py::arg("settings"), py::arg("sensor"), py::arg("synchronous_mapping") = false,
            py::arg("vocabulary") = py::none(), py::arg("loop_closing") = true, py::arg("global_ba") = true,
+           py::arg("dynamic") = py::none(),
            "synchronous_mapping: map each keyframe before tracking the next frame (repeatable runs).\n"
            "vocabulary: None, a Vocabulary or a path to one (ORBvoc.txt or binary): bag-of-words\n"
            "matching, a keyframe database and relocalisation of lost frames.\n"
            "loop_closing: detect and correct loops (needs the vocabulary); global_ba: a global\n"
-           "bundle adjustment after each loop correction.")
+           "bundle adjustment after each loop correction.\n"
+           "dynamic: None (off), a DynamicFilterOptions or a preset file: the dynamic-object front end.")
       .def("track_mono",
-           [](System& s, const py::object& image, double stamp, const py::object& mask) {
-             cv::Mat i = as_mat(image, "image"), k = as_mat(mask, "mask");
+           [](System& s, const py::object& image, double stamp, const py::object& mask, const py::object& labels) {
+             cv::Mat i = as_mat(image, "image"), k = as_mat(mask, "mask"), l = as_mat(labels, "labels");
              py::gil_scoped_release release;
-             return s.track_mono(i, stamp, k);
+             return s.track_mono(i, stamp, k, l);
            },
-           py::arg("image"), py::arg("stamp"), py::arg("mask") = py::none())
+           py::arg("image"), py::arg("stamp"), py::arg("mask") = py::none(), py::arg("labels") = py::none())
       .def("track_stereo",
-           [](System& s, const py::object& left, const py::object& right, double stamp, const py::object& mask) {
-             cv::Mat l = as_mat(left, "left"), r = as_mat(right, "right"), k = as_mat(mask, "mask");
+           [](System& s, const py::object& left, const py::object& right, double stamp, const py::object& mask,
+              const py::object& labels) {
+             cv::Mat l = as_mat(left, "left"), r = as_mat(right, "right"), k = as_mat(mask, "mask"),
+                     b = as_mat(labels, "labels");
              py::gil_scoped_release release;
-             return s.track_stereo(l, r, stamp, k);
+             return s.track_stereo(l, r, stamp, k, b);
            },
-           py::arg("left"), py::arg("right"), py::arg("stamp"), py::arg("mask") = py::none())
+           py::arg("left"), py::arg("right"), py::arg("stamp"), py::arg("mask") = py::none(),
+           py::arg("labels") = py::none())
       .def("track_rgbd",
-           [](System& s, const py::object& image, const py::object& depth, double stamp, const py::object& mask) {
-             cv::Mat i = as_mat(image, "image"), d = as_mat(depth, "depth"), k = as_mat(mask, "mask");
+           [](System& s, const py::object& image, const py::object& depth, double stamp, const py::object& mask,
+              const py::object& labels) {
+             cv::Mat i = as_mat(image, "image"), d = as_mat(depth, "depth"), k = as_mat(mask, "mask"),
+                     l = as_mat(labels, "labels");
              py::gil_scoped_release release;
-             return s.track_rgbd(i, d, stamp, k);
+             return s.track_rgbd(i, d, stamp, k, l);
            },
-           py::arg("image"), py::arg("depth"), py::arg("stamp"), py::arg("mask") = py::none())
+           py::arg("image"), py::arg("depth"), py::arg("stamp"), py::arg("mask") = py::none(),
+           py::arg("labels") = py::none())
       .def("track_frame",
-           [](System& s, const Frame& f, const py::object& mask) {
-             cv::Mat k = as_mat(mask, "mask");
+           [](System& s, const Frame& f, const py::object& mask, const py::object& labels) {
+             cv::Mat k = as_mat(mask, "mask"), l = as_mat(labels, "labels");
              py::gil_scoped_release release;
              switch (s.sensor()) {
-               case Sensor::kMono: return s.track_mono(f.image, f.stamp, k);
-               case Sensor::kStereo: return s.track_stereo(f.image, f.right, f.stamp, k);
-               case Sensor::kRGBD: return s.track_rgbd(f.image, f.depth, f.stamp, k);
+               case Sensor::kMono: return s.track_mono(f.image, f.stamp, k, l);
+               case Sensor::kStereo: return s.track_stereo(f.image, f.right, f.stamp, k, l);
+               case Sensor::kRGBD: return s.track_rgbd(f.image, f.depth, f.stamp, k, l);
              }
              throw InputError("unknown sensor");
            },
-           py::arg("frame"), py::arg("mask") = py::none(), "Tracks a frame loaded by a DataProvider.")
+           py::arg("frame"), py::arg("mask") = py::none(), py::arg("labels") = py::none(),
+           "Tracks a frame loaded by a DataProvider.")
       .def_property_readonly("sensor", [](const System& s) { return to_string(s.sensor()); })
       .def_property_readonly("settings", &System::settings)
       .def("counters", [](const System& s) {
@@ -341,6 +395,9 @@ PYBIND11_MODULE(_core, m) {
         d["rejected"] = c.rejected;
         d["tracked"] = c.tracked;
         d["masks_dropped"] = c.masks_dropped;
+        d["labels_dropped"] = c.labels_dropped;
+        d["dynamic_all_frames"] = c.dynamic_all_frames;
+        d["dynamic_stage_failures"] = c.dynamic_stage_failures;
         d["rejected_by_reason"] = c.rejected_by_reason;
         d["lost"] = c.lost;
         d["initializations"] = c.initializations;
@@ -382,6 +439,33 @@ PYBIND11_MODULE(_core, m) {
         return d;
       })
       .def("trajectory", [](const System& s) { return trajectory_to_numpy(s.trajectory()); })
+      .def_property_readonly("dynamic_filter_enabled", &System::dynamic_filter_enabled)
+      .def("last_dynamic_mask", [](const System& s) { return to_numpy(s.last_dynamic_mask()); },
+           "The dynamic filter's mask of the last frame (uint8 HxW, 255 = dynamic) in the input image's\n"
+           "pixels; None when the filter is off or before a frame.")
+      .def("dense_frame", [](const System& s, bool inpaint) -> py::object {
+        DenseFrame d;
+        {
+          py::gil_scoped_release release;
+          d = s.dense_frame(inpaint);
+        }
+        if (d.colour.empty()) return py::none();
+        py::dict out;
+        out["stamp"] = d.stamp;
+        out["colour"] = to_numpy(d.colour);
+        out["depth"] = to_numpy(d.depth);
+        out["dynamic"] = to_numpy(d.dynamic);
+        out["T_wc"] = pose_or_none(d.T_wc);
+        out["K"] = py::cast(Eigen::Matrix3d((Eigen::Matrix3d() << d.fx, 0, d.cx, 0, d.fy, d.cy, 0, 0, 1).finished()));
+        out["dist"] = to_numpy(d.dist);
+        out["inpainted"] = d.inpainted;
+        out["inpainted_pixels"] = d.inpainted_pixels;
+        return out;
+      }, py::arg("inpaint") = false,
+         "The last frame for a dense map: dict(stamp, colour BGR, depth (metres or None), dynamic mask,\n"
+         "T_wc (4x4 or None when not tracked), K, dist, inpainted, inpainted_pixels) in the tracked\n"
+         "image's pixels (rectified for stereo); inpaint: dynamic pixels filled with the background the\n"
+         "remembered keyframes saw. None when the filter is off or before a frame.")
       .def("reset", &System::reset, "Drops the map, the keyframe database and the trajectory.")
       .def("save_map", [](System& s, const py::object& path) {
         const std::string p = path_of(path);

@@ -10,6 +10,7 @@ def cmd_run(args) -> int:
 
     stats = run_dataset(RunOptions(kind=args.kind, path=args.path, sensor=args.sensor, config=args.config,
                                    out=args.out, dynamic=args.dynamic, masks=args.masks,
+                                   labels=args.labels, save_masks=args.save_masks,
                                    vocabulary=args.vocabulary,
                                    segment=args.segment, segment_mode=args.segment_mode,
                                    segment_threads=args.segment_threads, max_mask_age=args.max_mask_age,
@@ -26,7 +27,14 @@ def summary_line(out, stats: dict) -> str:
     ate_text = f"ATE RMSE {ate['rmse']:.4f} m" if ate else f"ATE n/a ({stats.get('reason', '')})"
     total = stats["stage_ms_median"].get("frame_total")
     ms = f"{total:.1f} ms/frame median (tracking thread)" if total is not None else "no frame processed"
-    return (f"{stats['tracked_frames']}/{stats['frames']} frames tracked, {ate_text}, {ms}; "
+    dyn = stats.get("dynamic_filter")
+    dyn_text = ""
+    if dyn and dyn["summary"]["frames"]:
+        d = dyn["summary"]
+        dyn_text = (f"; dynamic filter ({', '.join(dyn['stages'])}): {d['stage_ms_median'].get('dynamic', 0):.1f} ms, "
+                    f"{d['dynamic_keypoints_median']:.0f} dynamic keypoints, "
+                    f"{100 * d['dynamic_fraction_median']:.1f} % of the image (medians)")
+    return (f"{stats['tracked_frames']}/{stats['frames']} frames tracked, {ate_text}, {ms}{dyn_text}; "
             f"written to {out}")
 
 

@@ -19,16 +19,25 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--sensor", choices=["mono", "stereo", "rgbd"], help="default: the richest the dataset has")
     r.add_argument("--config", help="ORB-SLAM2 settings YAML (default: from the dataset's calibration)")
     r.add_argument("--out", default="out/run", help="output folder (default out/run)")
-    r.add_argument("--dynamic", default="off", help="dynamic-object front-end preset (default off)")
-    r.add_argument("--masks", help="folder of per-frame masks / label images named like the frames "
-                                   "(a `dynaorb segment` cache)")
+    r.add_argument("--dynamic", default="off", metavar="PRESET|FILE",
+                   help="dynamic-object front end: a preset of config/dynamic/ (off, stdyn, dm, ddl, li, full) "
+                        "or a preset YAML file (default off)")
+    r.add_argument("--labels", metavar="DIR",
+                   help="label images (class ids) named like the frames for the dynamic filter's semantic stage: "
+                        "a `dynaorb segment` folder (labels.json names the movable ids) or a folder in the "
+                        "preset's label set (e.g. a synthetic sequence's labels/, PASCAL VOC ids)")
+    r.add_argument("--save-masks", metavar="DIR",
+                   help="write the dynamic filter's mask of every frame here (PNG named like the frame)")
+    r.add_argument("--masks", help="folder of per-frame exclusion masks / label images named like the frames "
+                                   "(a `dynaorb segment` cache: its movable classes are masked; ground-truth masks)")
     r.add_argument("--vocabulary", default="default", metavar="FILE|default|none",
                    help="bag-of-words vocabulary for relocalisation and loop closing (default: dynaorb's own, "
                         "built on first use with `dynaorb vocab default`; or a binary / ORBvoc.txt file; "
                         "none: without; --load-map needs one)")
     r.add_argument("--segment", metavar="MODEL",
                    help="segment in-process with this model (file or name from `dynaorb models list`); "
-                        "its movable classes are masked")
+                        "its movable classes are masked, or, with a --dynamic preset, its labels feed the "
+                        "filter's semantic stage")
     r.add_argument("--segment-mode", choices=["async", "sync"], default="async",
                    help="async (default): the network runs on its own thread on the newest frame and "
                         "older masks are propagated by optical flow; sync: every frame waits for its mask")

@@ -6,6 +6,11 @@ OUT/stats.json: frames, tracked frames, skipped and rejected frames with
 reasons, per-stage median ms (per frame for the tracking thread, per keyframe
 for local mapping), fps, map size, and ATE / RPE against the ground truth when
 enough frames were tracked.
+
+With a dynamic-object front-end preset (--dynamic, config/dynamic/*.yaml) the
+stats also hold, per frame, the dynamic keypoint count, the dynamic share of
+the image, each stage's ms and its report, with medians in a summary
+(stats["dynamic_filter"]); --save-masks writes each frame's dynamic mask.
 """
 from __future__ import annotations
 
@@ -17,17 +22,40 @@ import pathlib
 import statistics
 import time
 
+import cv2
 import numpy as np
 
 from dynaorb import core
 from dynaorb.runner.frames import readable_frames
-from dynaorb.runner.masks import MaskFolder
+from dynaorb.runner.masks import LabelFolder, MaskFolder
 
 log = logging.getLogger(__name__)
 
-# Dynamic-object front-end presets. Only "off" exists until the front end lands;
-# a mask folder (--masks) already keeps the keypoints it marks out of tracking.
-DYNAMIC_MODES = ("off",)
+REPO = pathlib.Path(__file__).resolve().parents[3]
+# Dynamic-object front-end presets: config/dynamic/<name>.yaml.
+PRESET_DIR = REPO / "config" / "dynamic"
+
+
+def dynamic_presets() -> tuple[str, ...]:
+    """Names of the presets in config/dynamic/."""
+    return tuple(sorted(p.stem for p in PRESET_DIR.glob("*.yaml")))
+
+
+DYNAMIC_MODES = dynamic_presets()
+
+
+def resolve_dynamic(spec: str | None) -> pathlib.Path | None:
+    """The preset file for a preset name or a file path; None for off / None."""
+    if spec is None:
+        return None
+    path = pathlib.Path(spec)
+    if path.suffix in (".yaml", ".yml") and path.is_file():
+        return path
+    preset = PRESET_DIR / f"{spec}.yaml"
+    if preset.is_file():
+        return preset
+    raise ValueError(f"unknown dynamic mode {spec!r} (presets: {', '.join(dynamic_presets())}; "
+                     "or a preset YAML file)")
 
 
 @dataclasses.dataclass
@@ -37,7 +65,14 @@ class RunOptions:
     sensor: str | None = None
     config: str | None = None
     out: str = "out/run"
+    # Dynamic-object front end: a preset name (config/dynamic/: off, stdyn, dm,
+    # ddl, li, full) or a preset YAML file.
     dynamic: str = "off"
+    # Label images (class ids) named like the frames, for the filter's semantic
+    # stage: a `dynaorb segment` folder (labels.json) or e.g. a synthetic labels/.
+    labels: str | None = None
+    save_masks: str | None = None   # the filter's dynamic mask per frame, as PNG named like the frame
+    # Exclusion masks named like the frames (ground-truth masks, a mask cache): kept out of tracking.
     masks: str | None = None
     # Bag-of-words vocabulary (relocalisation, loop closing, reference-keyframe
     # matching): "default" (dynaorb's own, built and cached on first use), "none",
@@ -58,9 +93,10 @@ class RunOptions:
     localization: bool = False      # localisation only: no new keyframes or map points
 
 
-# Stages of the tracking thread (summed into "frame_total"); the others are
-# local mapping's, reported per keyframe.
-FRAME_STAGES = ("preprocess", "extract", "stereo_matching", "tracking")
+# Stages of the tracking thread (summed into "frame_total"; "dynamic" is the
+# whole dynamic filter, its parts are "dynamic.<stage>"); the others are local
+# mapping's, reported per keyframe.
+FRAME_STAGES = ("preprocess", "dynamic", "extract", "stereo_matching", "tracking")
 
 
 def _settings(provider, config: str | None):
@@ -156,11 +192,44 @@ def _vocabulary(spec):
     return core().Vocabulary.load(spec)
 
 
+def _dynamic_options(_core, opts: RunOptions):
+    """(preset path, DynamicFilterOptions) or (None, None) when off."""
+    path = resolve_dynamic(opts.dynamic)
+    options = _core.DynamicFilterOptions.load(str(path)) if path else None
+    return path, options
+
+
+def _median(values):
+    return statistics.median(values) if values else None
+
+
+def _dynamic_summary(per_frame: list[dict]) -> dict:
+    """Medians over the frames the filter ran on."""
+    stage_ms = collections.defaultdict(list)
+    for f in per_frame:
+        for k, v in f["stage_ms"].items():
+            stage_ms[k].append(v)
+    return {
+        "frames": len(per_frame),
+        "dynamic_keypoints_median": _median([f["dynamic_keypoints"] for f in per_frame]),
+        "dynamic_keypoints_total": sum(f["dynamic_keypoints"] for f in per_frame),
+        "dynamic_fraction_median": _median([f["dynamic_fraction"] for f in per_frame]),
+        "dynamic_fraction_mean": (sum(f["dynamic_fraction"] for f in per_frame) / len(per_frame)
+                                  if per_frame else None),
+        "stage_ms_median": {k: statistics.median(v) for k, v in sorted(stage_ms.items())},
+    }
+
+
+def _mask_name(image_path: str) -> str:
+    return pathlib.Path(image_path).with_suffix(".png").name
+
+
 def run_dataset(opts: RunOptions) -> dict:
     """Runs a sequence; returns the stats also written to OUT/stats.json."""
     _core = core()
-    if opts.dynamic not in DYNAMIC_MODES:
-        raise ValueError(f"unknown dynamic mode {opts.dynamic!r} (available: {', '.join(DYNAMIC_MODES)})")
+    resolve_dynamic(opts.dynamic)  # an unknown preset fails before anything is loaded
+    if opts.labels and opts.segment:
+        raise ValueError("give either a label folder (--labels) or a segmentation model (--segment), not both")
     segmenter, semantic = _semantic(opts)
     try:
         return _run(_core, opts, segmenter, semantic)
@@ -177,8 +246,25 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
     vocabulary = _vocabulary(opts.vocabulary)
     if opts.load_map and vocabulary is None:
         raise ValueError("--load-map needs a vocabulary (--vocabulary): frames are relocalised in the loaded map")
+    preset, dynamic = _dynamic_options(_core, opts)
+    if dynamic is not None:
+        dynamic.validate(provider.sensor)  # a stage this sensor cannot run: refused, naming both
+    dynamic_on = dynamic is not None and dynamic.enabled(provider.sensor)
+    if opts.labels and not dynamic_on:
+        raise ValueError("--labels feeds the dynamic filter's semantic stage: give a --dynamic preset with stages "
+                         "for this sensor (--masks takes an exclusion mask folder)")
+    if opts.save_masks and not dynamic_on:
+        raise ValueError("--save-masks writes the dynamic filter's masks: give a --dynamic preset with stages "
+                         "for this sensor")
+    labels_folder = LabelFolder(opts.labels) if opts.labels else None
+    if dynamic_on:
+        # Label ids only mean something in the network's own label set.
+        if labels_folder is not None and labels_folder.movable is not None:
+            dynamic.movable_classes = labels_folder.movable
+        elif segmenter is not None:
+            dynamic.movable_classes = [int(i) for i in segmenter.card.movable]
     system = _core.System(settings, provider.sensor, synchronous_mapping=opts.synchronous_mapping,
-                          vocabulary=vocabulary)
+                          vocabulary=vocabulary, dynamic=dynamic if dynamic_on else None)
     map_io = {}
     if opts.load_map:
         t0 = time.perf_counter()
@@ -190,6 +276,11 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
     masks = MaskFolder(opts.masks) if opts.masks else None
     out = pathlib.Path(opts.out)
     out.mkdir(parents=True, exist_ok=True)
+    save_masks = pathlib.Path(opts.save_masks) if opts.save_masks else None
+    if save_masks is not None:
+        save_masks.mkdir(parents=True, exist_ok=True)
+    dynamic_frames = []
+    masks_saved = 0
 
     skipped = collections.Counter()
     states = collections.Counter()
@@ -200,11 +291,15 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
     start = time.perf_counter()
     for i, frame in readable_frames(provider, skipped, opts.progress, f"{opts.kind} {pathlib.Path(opts.path).name}"):
         mask = masks.for_image(frame.image_path, frame.image.shape[:2]) if masks else None
+        labels = labels_folder.for_image(frame.image_path, frame.image.shape[:2]) if labels_folder else None
         if semantic is not None:
-            labels = semantic.labels_for(i, frame.image)
-            mask_ages.append(labels.age)
-            mask = segmenter.movable_mask(labels.labels) if labels.labels is not None else None
-        result = system.track_frame(frame, mask)
+            seg = semantic.labels_for(i, frame.image)
+            mask_ages.append(seg.age)
+            if dynamic_on:
+                labels = seg.labels  # the filter decides what of the movable classes to drop
+            else:
+                mask = segmenter.movable_mask(seg.labels) if seg.labels is not None else None
+        result = system.track_frame(frame, mask, labels)
         if result.rejected != "none":
             log.warning("frame %d (%s) rejected: %s", i, frame.image_path, result.message)
         states[result.state] += 1
@@ -212,6 +307,19 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
             ok_frames.append(i)
         methods[result.method or "rejected"] += 1
         per_frame_ms.append(dict(result.stage_ms))
+        if dynamic_on and result.rejected == "none":
+            dynamic_frames.append({
+                "index": i, "stamp": frame.stamp, "labels_used": result.labels_used,
+                "dynamic_keypoints": result.dynamic_keypoints, "dynamic_fraction": result.dynamic_fraction,
+                "stage_ms": {k: v for k, v in result.stage_ms.items() if k == "dynamic" or k.startswith("dynamic.")},
+                "values": dict(result.dynamic_values)})
+            if save_masks is not None:
+                dyn = system.last_dynamic_mask()
+                if dyn is not None:
+                    target = save_masks / _mask_name(frame.image_path)
+                    if not cv2.imwrite(str(target), dyn):
+                        raise OSError(f"{target}: cannot write the dynamic mask")
+                    masks_saved += 1
     wall = time.perf_counter() - start
     if opts.save_map:
         t0 = time.perf_counter()
@@ -230,6 +338,18 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
                     "frames": len(provider), "warnings": list(provider.warnings)},
         "settings": settings.summary(),
         "dynamic": opts.dynamic,
+        "dynamic_filter": None if not dynamic_on else {
+            "preset": opts.dynamic, "file": str(preset), "stages": list(dynamic.stages_for(provider.sensor)),
+            "movable_classes": list(dynamic.movable_classes) or None,
+            "labels": (dict(labels_folder.counts) if labels_folder else
+                       "segmentation" if semantic is not None else None),
+            "all_dynamic_frames": int(counters["dynamic_all_frames"]),
+            "stage_failures": int(counters["dynamic_stage_failures"]),
+            "labels_dropped_by_core": int(counters["labels_dropped"]),
+            "masks_saved": masks_saved if save_masks is not None else None,
+            "summary": _dynamic_summary(dynamic_frames),
+            "per_frame": dynamic_frames,
+        },
         "frames": len(provider),
         "frames_skipped": dict(skipped),
         "frames_rejected": counters["rejected_by_reason"],
