@@ -1,0 +1,134 @@
+#include <gtest/gtest.h>
+
+#include <opencv2/imgproc.hpp>
+
+#include "dynaorb/dynamic/semantic_stage.h"
+#include "dynaorb/io/errors.h"
+
+namespace dynaorb::dynamic {
+namespace {
+
+constexpr int kPerson = 15, kCar = 7, kChair = 9;  // PASCAL VOC ids
+
+// A frame with a person (a 40x60 box at (100, 80)) and a chair.
+FrameData labelled_frame() {
+  FrameData f;
+  f.grey = cv::Mat(240, 320, CV_8UC1, cv::Scalar(128));
+  f.labels = cv::Mat::zeros(240, 320, CV_8UC1);
+  f.labels(cv::Rect(100, 80, 40, 60)).setTo(kPerson);
+  f.labels(cv::Rect(220, 150, 30, 30)).setTo(kChair);
+  return f;
+}
+
+SemanticOptions options(const std::string& yaml) {
+  cv::FileStorage fs("%YAML:1.0\nDynamic.semantic: " + yaml + "\n",
+                     cv::FileStorage::READ | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
+  SemanticOptions o;
+  o.read(fs["Dynamic.semantic"]);
+  return o;
+}
+
+StageReport run(SemanticStage& stage, FrameData& f, cv::Mat& dynamic) {
+  Context ctx{Sensor::kRGBD, nullptr, f, nullptr, cv::Mat::zeros(f.grey.size(), CV_8UC1), nullptr, nullptr,
+              std::nullopt, nullptr};
+  StageReport report;
+  stage.process(ctx, report);
+  dynamic = ctx.dynamic;
+  return report;
+}
+
+TEST(SemanticStage, ClassSetsOfThePapers) {
+  EXPECT_EQ(voc_movable_classes().size(), 14u);   // DynaSLAM / STDyn / DDL
+  EXPECT_EQ(coco_movable_classes().size(), 20u);  // DM-SLAM Sec. 3.2.1
+  EXPECT_EQ(cityscapes_movable_classes().size(), 8u);
+  // VOC: person and car are movable, chair (9), bottle (5) and sofa (18) are not.
+  const auto& voc = voc_movable_classes();
+  for (int id : {kPerson, kCar}) EXPECT_NE(std::find(voc.begin(), voc.end(), id), voc.end());
+  for (int id : {5, kChair, 18}) EXPECT_EQ(std::find(voc.begin(), voc.end(), id), voc.end());
+  EXPECT_EQ(options("{classes: coco}").ids, coco_movable_classes());
+  EXPECT_EQ(options("{classes: cityscapes}").ids, cityscapes_movable_classes());
+  EXPECT_EQ(options("{classes: [15, 300]}").ids, (std::vector<int>{15, 300}));
+}
+
+TEST(SemanticStage, DropMarksMovableClassesWithTheirMargin) {
+  SemanticStage stage(options("{margin: 10, policy: drop}"));
+  FrameData f = labelled_frame();
+  cv::Mat dynamic;
+  const StageReport r = run(stage, f, dynamic);
+  ASSERT_FALSE(f.candidates.empty());
+  EXPECT_EQ(cv::countNonZero(f.candidates != dynamic), 0);  // drop: the candidates are dynamic
+  // The person box and 10 px around it; not 11 px away, not the chair.
+  EXPECT_EQ(dynamic.at<uchar>(80 + 30, 100 + 20), 255);
+  EXPECT_EQ(dynamic.at<uchar>(80 + 30, 100 - 10), 255);
+  EXPECT_EQ(dynamic.at<uchar>(80 + 30, 100 - 11), 0);
+  EXPECT_EQ(dynamic.at<uchar>(80 + 60 - 1 + 10, 100 + 20), 255);
+  EXPECT_EQ(dynamic.at<uchar>(80 + 60 - 1 + 11, 100 + 20), 0);
+  // A disc, not a square: the corner's diagonal neighbour at (7, 7) is within 10 px, (8, 8) is not.
+  EXPECT_EQ(dynamic.at<uchar>(80 - 7, 100 - 7), 255);
+  EXPECT_EQ(dynamic.at<uchar>(80 - 8, 100 - 8), 0);
+  EXPECT_EQ(dynamic.at<uchar>(165, 235), 0);  // chair
+  EXPECT_EQ(r.regions, 1);
+  EXPECT_NEAR(r.values.at("candidate_fraction"), cv::countNonZero(dynamic) / (320.0 * 240.0), 1e-12);
+}
+
+TEST(SemanticStage, StaticUntilProvenOnlySetsCandidates) {
+  SemanticStage stage(options("{margin: 0, policy: static_until_proven}"));
+  FrameData f = labelled_frame();
+  cv::Mat dynamic;
+  const StageReport r = run(stage, f, dynamic);
+  EXPECT_EQ(cv::countNonZero(dynamic), 0);
+  EXPECT_EQ(cv::countNonZero(f.candidates), 40 * 60);  // margin 0: exactly the person
+  EXPECT_EQ(r.regions, 0);
+  EXPECT_EQ(r.values.at("candidate_regions"), 1);
+}
+
+TEST(SemanticStage, ExplicitIdsAndSixteenBitLabels) {
+  SemanticStage stage(options("{classes: [9, 1000], margin: 0}"));
+  FrameData f = labelled_frame();
+  f.labels.convertTo(f.labels, CV_16U);
+  f.labels(cv::Rect(0, 0, 5, 5)).setTo(1000);
+  cv::Mat dynamic;
+  run(stage, f, dynamic);
+  EXPECT_EQ(cv::countNonZero(dynamic), 30 * 30 + 25);  // the chair and the id-1000 corner, not the person
+  // The label source's own set replaces the configured one.
+  stage.set_movable_classes({kPerson});
+  run(stage, f, dynamic);
+  EXPECT_EQ(cv::countNonZero(dynamic), 40 * 60);
+}
+
+TEST(SemanticStage, NoOrBadLabelsMarkNothing) {
+  SemanticStage stage;
+  FrameData f = labelled_frame();
+  f.labels.release();
+  cv::Mat dynamic;
+  StageReport r = run(stage, f, dynamic);
+  EXPECT_EQ(r.values.at("skipped_no_labels"), 1);
+  EXPECT_TRUE(f.candidates.empty());
+  EXPECT_EQ(cv::countNonZero(dynamic), 0);
+  f.labels = cv::Mat::zeros(10, 10, CV_8UC1);
+  r = run(stage, f, dynamic);
+  EXPECT_EQ(r.values.at("skipped_bad_labels"), 1);
+  f.labels = cv::Mat::zeros(240, 320, CV_32FC1);
+  r = run(stage, f, dynamic);
+  EXPECT_EQ(r.values.at("skipped_bad_labels"), 1);
+}
+
+TEST(SemanticStage, OptionErrorsNameTheKey) {
+  auto message = [](const std::string& yaml) {
+    try {
+      options(yaml);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message("{classes: kitti}").find("Dynamic.semantic.classes"), std::string::npos);
+  EXPECT_NE(message("{classes: [person]}").find("Dynamic.semantic.classes"), std::string::npos);
+  EXPECT_NE(message("{margin: wide}").find("Dynamic.semantic.margin"), std::string::npos);
+  EXPECT_NE(message("{margin: -1}").find("Dynamic.semantic.margin"), std::string::npos);
+  EXPECT_NE(message("{policy: maybe}").find("Dynamic.semantic.policy"), std::string::npos);
+  EXPECT_EQ(message("{policy: static_until_proven}"), "no error");
+}
+
+}  // namespace
+}  // namespace dynaorb::dynamic
