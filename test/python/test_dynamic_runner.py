@@ -120,3 +120,37 @@ def test_cli_dynamic_run_and_errors(tmp_path, synth_rgbd):
     bad = tmp_path / "bad.yaml"
     bad.write_text("%YAML:1.0\nDynamic.stages: [semantic]\nDynamic.semantic: {margn: 3}\n")
     assert "Dynamic.semantic.margn" in error("--dynamic", str(bad))
+
+
+def test_bindings_labels_mask_and_dense_frame(synth_rgbd):
+    from dynaorb import core
+
+    _core = core()
+    preset = _core.DynamicFilterOptions.parse(
+        "Dynamic.stages: [semantic]\nDynamic.semantic: {policy: drop, margin: 0}\n", "inline")
+    assert preset.stages_for("rgbd") == ["semantic"]
+    assert set(_core.dynamic_stages()) >= {"semantic", "dm", "stdyn", "ddl", "li"}
+    rng = np.random.default_rng(0)
+    rgb = cv2.GaussianBlur(rng.integers(0, 255, (240, 320, 3), dtype=np.uint8), (5, 5), 1.2)
+    depth = np.full((240, 320), 10000, np.uint16)
+    labels = np.zeros((240, 320), np.uint8)
+    labels[50:150, 100:180] = 15
+    cfg = _core.Settings.load(str(synth_rgbd / "settings.yaml"))
+    system = _core.System(cfg, "rgbd", synchronous_mapping=True, dynamic=preset)
+    assert system.dynamic_filter_enabled
+    assert system.last_dynamic_mask() is None and system.dense_frame() is None
+    r = system.track_rgbd(rgb, depth, 1.0, labels=labels)
+    assert r.labels_used and r.dynamic_fraction == pytest.approx(100 * 80 / (240 * 320))
+    assert r.dynamic_keypoints > 0 and "dynamic.semantic" in r.stage_ms
+    assert r.dynamic_values["semantic.regions"] == 1
+    assert np.array_equal(system.last_dynamic_mask() > 0, labels == 15)
+    d = system.dense_frame()
+    assert d["colour"].shape == (240, 320, 3) and d["depth"].dtype == np.float32
+    assert d["T_wc"].shape == (4, 4) and d["K"][0, 0] == cfg.fx and not d["inpainted"]
+    assert system.counters()["labels_dropped"] == 0
+    system.track_rgbd(rgb, depth, 2.0, labels=np.zeros((10, 10), np.uint8))
+    assert system.counters()["labels_dropped"] == 1
+    off = _core.System(cfg, "rgbd")
+    assert not off.dynamic_filter_enabled
+    assert off.track_rgbd(rgb, depth, 1.0, labels=labels).dynamic_keypoints == 0
+

@@ -379,6 +379,42 @@ TEST(SystemDynamic, AFrameOfOnlyMovingObjectsDegrades) {
   EXPECT_GT(after.keypoints, 100);
 }
 
+TEST(SystemDynamic, DenseFrameInpaintsFromKeyframes) {
+  SystemOptions o;
+  o.synchronous_mapping = true;
+  o.dynamic = DynamicFilterOptions::parse("Dynamic.stages: [semantic]\nDynamic.semantic: {policy: drop, margin: 0}\n",
+                                          "inpaint.yaml");
+  Settings settings = rgbd_settings();
+  settings.camera.rgb = false;  // BGR input, kept as it is
+  System sys(settings, Sensor::kRGBD, o);
+  const cv::Mat rgb = texture(2);
+  const cv::Mat depth(480, 640, CV_16UC1, cv::Scalar(10000));  // 2 m
+  ASSERT_EQ(sys.track_rgbd(rgb, depth, 1.0).state, TrackingState::kOk);  // the first keyframe
+  ASSERT_EQ(sys.track_rgbd(rgb, depth, 2.0).state, TrackingState::kOk);
+  // A dark "person" 1 m from the camera covers a box.
+  const cv::Rect box(250, 150, 120, 160);
+  cv::Mat occluded = rgb.clone(), near = depth.clone(), labels = cv::Mat::zeros(480, 640, CV_8UC1);
+  occluded(box).setTo(cv::Scalar(0, 0, 0));
+  near(box).setTo(5000);
+  labels(box).setTo(15);
+  const TrackResult r = sys.track_rgbd(occluded, near, 3.0, cv::Mat(), labels);
+  ASSERT_EQ(r.state, TrackingState::kOk);
+  const DenseFrame raw = sys.dense_frame(false);
+  EXPECT_FALSE(raw.inpainted);
+  EXPECT_EQ(cv::countNonZero(raw.dynamic), box.area());
+  ASSERT_TRUE(raw.T_wc.has_value());
+  EXPECT_LT(raw.T_wc->translation().norm(), 0.01);  // the camera did not move
+  EXPECT_FLOAT_EQ(raw.depth.at<float>(box.y + 10, box.x + 10), 1.0f);
+  const DenseFrame d = sys.dense_frame(true);
+  EXPECT_TRUE(d.inpainted);
+  EXPECT_GT(d.inpainted_pixels, box.area() * 9 / 10);
+  // The background the keyframe saw, not the person.
+  cv::Mat diff;
+  cv::absdiff(d.colour(box), rgb(box), diff);
+  EXPECT_LT(cv::mean(diff)[0], 10.0);
+  EXPECT_NEAR(d.depth.at<float>(box.y + 80, box.x + 60), 2.0f, 0.05f);
+}
+
 TEST(SystemDynamic, StereoMaskComesBackInInputPixels) {
   const std::filesystem::path cfg = std::filesystem::path(DYNAORB_SOURCE_DIR) / "config" / "EuRoC_stereo.yaml";
   const Settings settings = Settings::load(cfg.string());
