@@ -154,3 +154,21 @@ def test_bindings_labels_mask_and_dense_frame(synth_rgbd):
     assert not off.dynamic_filter_enabled
     assert off.track_rgbd(rgb, depth, 1.0, labels=labels).dynamic_keypoints == 0
 
+
+
+def test_segment_feeds_labels_to_the_filter(tmp_path, synth_rgbd, data):
+    models = data.parent / "models" / "segmentation"
+    model = models / "deeplabv3_mnv2_dm05_pascal_quant.onnx"
+    if not model.is_file():
+        pytest.skip(f"model not found at {model}")
+    stats = run_dataset(RunOptions(kind="tum", path=str(synth_rgbd), out=str(tmp_path / "o"), progress=False,
+                                   dynamic="dm", segment=str(model), segment_mode="sync",
+                                   save_masks=str(tmp_path / "m")))
+    dyn = stats["dynamic_filter"]
+    assert dyn["labels"] == "segmentation"
+    assert dyn["movable_classes"] == list(VOC_MOVABLE)  # the model card's movable ids
+    assert all(f["labels_used"] for f in dyn["per_frame"])
+    assert stats["masks"] is None and len(list((tmp_path / "m").iterdir())) == 8
+    with pytest.raises(ValueError, match="not both"):
+        run_dataset(RunOptions(kind="tum", path=str(synth_rgbd), out=str(tmp_path / "x"), progress=False,
+                               dynamic="dm", segment=str(model), labels=str(synth_rgbd / "labels")))
