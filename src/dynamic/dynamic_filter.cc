@@ -6,14 +6,10 @@
 #include <cmath>
 #include <fstream>
 #include <mutex>
-#include <opencv2/imgproc.hpp>
-#include <set>
-#include <sstream>
 
 #include "dynaorb/core/stopwatch.h"
 #include "dynaorb/dynamic/semantic_stage.h"
 #include "dynaorb/io/errors.h"
-#include "file_node_options.h"
 #include "stage_registry.h"
 
 namespace dynaorb::dynamic {
@@ -283,8 +279,15 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
     if (stage->needs_motion_cues() && !res.motion_cues) {
       const auto t0 = Clock::now();
       if (previous && calib_) {
-        tracked = track_points(*previous, current, *calib_, sensor_, o_.motion_cues);
-        ego = estimate_ego_motion(tracked, *calib_, sensor_, o_.motion_cues);
+        try {
+          tracked = track_points(*previous, current, *calib_, sensor_, o_.motion_cues);
+          ego = estimate_ego_motion(tracked, *calib_, sensor_, o_.motion_cues);
+        } catch (const std::exception& e) {  // documented never to throw: a bug, the stages see no cues
+          tracked.clear();
+          ego = EgoMotion();
+          res.failed.push_back("motion_cues");
+          res.failure_messages.push_back(std::string("motion_cues: ") + e.what());
+        }
       }
       ctx.tracked = &tracked;
       ctx.ego = &ego;
@@ -302,11 +305,13 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
     } catch (const std::exception& e) {
       // A stage bug must not take SLAM down: its regions are dropped.
       res.failed.push_back(name);
+      res.failure_messages.push_back(name + ": " + e.what());
       report.values["failed"] = 1;
       ctx.dynamic = before;
     }
     if (ctx.dynamic.size() != size || ctx.dynamic.type() != CV_8UC1) {
       res.failed.push_back(name);
+      res.failure_messages.push_back(name + ": left a dynamic mask of another size or type");
       report.values["failed"] = 1;
       ctx.dynamic = before;
     }

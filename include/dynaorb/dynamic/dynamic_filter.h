@@ -87,6 +87,7 @@ struct FilterResult {
   // Stages that failed with an exception on this frame (a bug, not bad
   // input): their regions are left out, the frame goes on.
   std::vector<std::string> failed;
+  std::vector<std::string> failure_messages;  // "<stage>: <what>"
   bool motion_cues = false;    // computed for this frame
   int tracked_points = 0;      // of the motion cues
   bool ego_valid = false;

@@ -171,7 +171,8 @@ TEST(DynamicFilterOptions, UnsupportedSensorIsRefused) {
 TEST(DynamicFilterOptions, ShippedPresetsLoad) {
   const std::filesystem::path dir = std::filesystem::path(DYNAORB_SOURCE_DIR) / "config" / "dynamic";
   std::vector<std::string> names;
-  for (const auto& e : std::filesystem::directory_iterator(dir)) names.push_back(e.path().stem().string());
+  for (const auto& e : std::filesystem::directory_iterator(dir))
+    if (e.path().extension() == ".yaml") names.push_back(e.path().stem().string());
   for (const std::string n : {"off", "stdyn", "dm", "ddl", "li", "full"})
     EXPECT_NE(std::find(names.begin(), names.end(), n), names.end()) << n;
   for (const std::string& n : names) {
@@ -245,6 +246,7 @@ TEST(DynamicFilter, AFailingStageLeavesNoTrace) {
   FrameData f = frame(0);
   const FilterResult r = filter.process(f, std::nullopt);
   EXPECT_EQ(r.failed, (std::vector<std::string>{"probe_throw"}));
+  EXPECT_EQ(r.failure_messages, (std::vector<std::string>{"probe_throw: probe failure"}));
   EXPECT_EQ(g_probe.calls.back(), "probe_c");  // the stages after it still run
   EXPECT_EQ(cv::countNonZero(r.mask), 100);
   EXPECT_EQ(r.reports.at("probe_throw").values.at("failed"), 1);
