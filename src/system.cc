@@ -140,7 +140,7 @@ struct System::Impl {
   void ensure_core(const cv::Size& size) {
     if (tracker) return;
     auto calib = map::Calibration::make(settings, sensor, size.width, size.height);
-    builder = std::make_unique<tracking::FrameBuilder>(settings, calib);
+    builder = std::make_unique<tracking::FrameBuilder>(settings, calib, options.tracker.mono_init_feature_factor);
     if (options.vocabulary)
       database = std::make_unique<place::KeyFrameDatabase>(map, options.vocabulary, options.database);
     mapper = std::make_unique<mapping::LocalMapper>(map, sensor, options.mapping, options.vocabulary,

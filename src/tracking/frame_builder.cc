@@ -1,5 +1,6 @@
 #include "dynaorb/tracking/frame_builder.h"
 
+#include <algorithm>
 #include <chrono>
 #include <future>
 #include <opencv2/calib3d.hpp>
@@ -10,15 +11,16 @@
 namespace dynaorb::tracking {
 
 namespace {
-ExtractorSettings doubled(ExtractorSettings s) {
-  s.n_features *= 2;
+ExtractorSettings scaled(ExtractorSettings s, int factor) {
+  s.n_features *= std::max(factor, 1);
   return s;
 }
 }  // namespace
 
-FrameBuilder::FrameBuilder(const Settings& settings, std::shared_ptr<const map::Calibration> calib)
+FrameBuilder::FrameBuilder(const Settings& settings, std::shared_ptr<const map::Calibration> calib,
+                           int init_feature_factor)
     : calib_(std::move(calib)), left_(settings.extractor), right_(settings.extractor),
-      init_(doubled(settings.extractor)) {}
+      init_(scaled(settings.extractor, init_feature_factor)) {}
 
 std::shared_ptr<map::Features> FrameBuilder::extract(features::OrbExtractor& extractor,
                                                      const cv::Mat& grey, const cv::Mat& exclude,

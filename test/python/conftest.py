@@ -56,3 +56,18 @@ def real_vocabulary(data):
         for i in range(0, len(provider), step):
             descriptors.append(_core.extract_orb(provider.load(i).image, settings)[1])
     return _core.Vocabulary.train(descriptors, k=10, L=5, seed=0)
+
+
+@pytest.fixture(scope="session")
+def synth_scenes(tmp_path_factory, data) -> dict:
+    """The same room and path without and with movers (60 frames, 640x480, seed 0),
+    for each sensor: {(sensor, movers): sequence folder}."""
+    from dynaorb.synth import SynthConfig, generate
+
+    out = {}
+    for sensor in ("rgbd", "stereo", "mono"):
+        for movers in (0, 3):
+            d = tmp_path_factory.mktemp(f"{sensor}{movers}")
+            generate(d, SynthConfig(sensor=sensor, movers=movers, frames=60, seed=0))
+            out[sensor, movers] = d if sensor == "rgbd" else d / "sequences" / "00"
+    return out

@@ -16,12 +16,15 @@ using StageTimes = std::map<std::string, double>;
 
 class FrameBuilder {
  public:
-  FrameBuilder(const Settings& settings, std::shared_ptr<const map::Calibration> calib);
+  // init_feature_factor: the monocular initialisation extracts this many
+  // times nFeatures (ORB-SLAM2: 2, ORB-SLAM3: 5; see TrackerOptions).
+  FrameBuilder(const Settings& settings, std::shared_ptr<const map::Calibration> calib,
+               int init_feature_factor = 2);
 
   // grey: CV_8UC1 tracked image; exclude: empty or CV_8UC1, non-zero pixels
   // get no keypoints. depth: CV_32F metres, 0 = no measurement.
-  // initializing: while a monocular map is being initialised, twice the
-  // features (ORB-SLAM2's mpIniORBextractor), for enough two-view matches.
+  // initializing: while a monocular map is being initialised, init_feature_factor
+  // times the features (mpIniORBextractor), for enough two-view matches.
   // count (optional): what the exclusion cost inside count->region (the
   // dynamic filter's mask) in the left / only image (OrbExtractor).
   std::shared_ptr<const map::Features> mono(const cv::Mat& grey, const cv::Mat& exclude, StageTimes& t,

@@ -88,6 +88,12 @@ struct TrackerOptions {
   int reset_if_lost_below_keyframes = 5;
   int reset_after_lost = 10;
   // Monocular initialisation (ORB-SLAM2's MonocularInitialization).
+  // Features extracted while a monocular map is initialised, as a multiple of
+  // nFeatures: ORB-SLAM2's 2 (ORB-SLAM3 takes 5). Measured on EuRoC MH_05
+  // (synchronous mapping): 2 -> first map at frame 85, every later frame
+  // tracked; 3 -> frame 54, all tracked; 4 and 5 -> frame 8, from the first
+  // centimetre of motion over the wooden platform, lost for good 16 frames on.
+  int mono_init_feature_factor = 2;
   int mono_init_min_keypoints = 100;  // reference and current frame: more keypoints than this
   double mono_init_window = 100.0;    // SearchForInitialization window, pixels
   double mono_init_nn_ratio = 0.9;    // best / second best descriptor distance

@@ -1,0 +1,84 @@
+#pragma once
+// Li et al. 2021 ("Robust Stereo Visual SLAM for Dynamic Environments With
+// Moving Object", IEEE Access 9) as one stage of the dynamic filter: a
+// network-free, stereo-only detector of moving objects.
+//   1. SGBM disparity of the current pair (li_disparity.h); the depth it gives
+//      (bf / d) goes into ctx.current.depth for the later stages and the map;
+//   2. quadtree FAST on the previous left image, LK into the current one,
+//      RANSAC F, epipolar distance vs alpha_epi + beta_epi * d (eq. 1-3,
+//      li_epipolar.h);
+//   3. dynamic points clustered into ROIs (eq. 4, > 4 points, li_rois.h);
+//   4. improved SLIC on the ROIs (eq. 5-7, li_superpixels.h);
+//   5. a RANSAC disparity plane per superpixel (eq. 8, li_planes.h);
+//   6. co-planar / hinge / occlusion boundaries (eq. 9-11, li_boundaries.h);
+//   7. a rectangle per object from the occlusion boundaries around its
+//      dynamic points (li_regions.h), ORed into ctx.dynamic: no ORB feature is
+//      extracted inside it (Sec. III-C).
+// It computes its own motion cues (the paper's FAST + LK), so it asks the
+// filter for none, and it reads no semantic input.
+//
+// What the method cannot see: a point moving along its own epipolar line
+// (an object travelling parallel to the camera's translation, e.g. a vehicle
+// driving beside a forward-moving camera) passes eq. 2-3 and is static to it;
+// so is a slow mover whose flow stays under T_epi (the paper's Sec. V).
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "dynaorb/dynamic/li_boundaries.h"
+#include "dynaorb/dynamic/li_epipolar.h"
+#include "dynaorb/dynamic/li_options.h"
+#include "dynaorb/dynamic/li_planes.h"
+#include "dynaorb/dynamic/li_regions.h"
+#include "dynaorb/dynamic/li_rois.h"
+#include "dynaorb/dynamic/stage.h"
+
+namespace dynaorb::dynamic {
+
+// Everything one frame produced, kept for tests, visualisation and benchmarks.
+struct LiFrameDetail {
+  cv::Mat disparity;                 // CV_32FC1 full-resolution px, 0 = none
+  LiEpipolarResult epipolar;
+  std::vector<int> dynamic_tracks;   // indices into epipolar.tracks; cluster members index this
+  std::vector<LiCluster> clusters;   // the moving objects' ROIs
+  std::vector<cv::Rect> slic_areas;  // the merged ROIs SLIC ran on
+  cv::Mat labels;                    // CV_32SC1 superpixels of the whole image, -1 outside the areas
+  int superpixels = 0;
+  std::vector<LiPlane> planes;
+  LiBoundaries boundaries;
+  std::vector<LiRegion> regions;     // one per cluster
+  std::vector<cv::Rect> rectangles;  // the dynamic ones
+};
+
+class LiStage : public Stage {
+ public:
+  explicit LiStage(LiOptions options = {});
+
+  std::string name() const override { return "li"; }
+  bool supports(Sensor sensor) const override { return sensor == Sensor::kStereo; }
+  bool needs_motion_cues() const override { return false; }
+  // report.values: the counts (corners, tracked, judged, dynamic, static,
+  // f_inliers, rois, roi_pixels, superpixels, slic_iterations,
+  // slic_visits_per_pixel, planes, boundaries, coplanar, hinge,
+  // occlusion_boundaries, unlabelled_boundaries, rectangles,
+  // rejected_clusters, marked_fraction, disparity_valid, depth_filled) and the
+  // per-step times (disparity_ms, corners_ms, flow_ms, fmatrix_ms, rois_ms,
+  // slic_ms, planes_ms, boundaries_ms, rectangles_ms, total_ms); on degenerate
+  // input one of skipped_no_calibration, skipped_bad_input, skipped_no_right,
+  // skipped_no_previous, skipped_previous_mismatch, too_few_points, f_failed,
+  // no_moving_object, failed_opencv (= 1) and nothing is marked.
+  void process(Context& ctx, StageReport& report) override;
+
+  const LiOptions& options() const { return o_; }
+  const LiFrameDetail& last() const { return last_; }
+
+ private:
+  // Steps 4-7 on this frame's clusters: superpixels, planes, boundary labels,
+  // rectangles ORed into ctx.dynamic.
+  void segment_and_mark(const cv::Mat& grey, Context& ctx, StageReport& report);
+
+  LiOptions o_;
+  LiFrameDetail last_;
+};
+
+}  // namespace dynaorb::dynamic

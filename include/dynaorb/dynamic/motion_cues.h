@@ -1,0 +1,82 @@
+#pragma once
+// The motion cues the dynamic stages share, computed once per frame by the
+// filter: corners tracked from the previous into the current image
+// (TrackedPoint) and the camera's ego-motion estimated from the points
+// outside the movable-class regions (EgoMotion). Both are in stage.h.
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "dynaorb/core/sensor.h"
+#include "dynaorb/dynamic/stage.h"
+#include "dynaorb/map/calibration.h"
+
+namespace dynaorb::dynamic {
+
+struct MotionCueOptions {
+  // Corners: the goodFeaturesToTrack call of DS-SLAM's released code
+  // (Frame::ProcessMovingObject: 1000 corners, quality 0.01, distance 8,
+  // block 3, Harris with k = 0.04), the corner detector STDyn-SLAM Sec. III-A
+  // names ("a Harris detector") without giving values.
+  int max_corners = 1000;
+  double quality_level = 0.01;
+  double min_distance = 8;  // px
+  int block_size = 3;
+  bool use_harris = true;
+  double harris_k = 0.04;
+  // Sub-pixel corner refinement: cornerSubPix half-window of DS-SLAM's code
+  // (Size(10, 10)); 0 turns it off.
+  int subpix_window = 10;  // px
+  // Pyramidal Lucas-Kanade: DM-SLAM Sec. 3.2.4 uses LK [41] without values;
+  // these are DS-SLAM's code (calcOpticalFlowPyrLK window 22x22, 5 pyramid
+  // levels above the image). With 3 levels a person 2 m away moving 12 cm
+  // between frames loses over 90 % of its tracks (measured on rendered views).
+  int lk_window = 22;  // px, square
+  int lk_levels = 5;
+  // Ours: a track is kept only when tracking the current point back lands
+  // within this many pixels of where it started (rejects occlusions and drift).
+  double forward_backward_max = 1.0;  // px
+  // STDyn-SLAM Sec. III-A: "the Harris points pair is discarded if at least one
+  // of the points is on the edge corner or close to it" (no value in the paper;
+  // 10 px is ours).
+  int border = 10;  // px
+  // Ours: a depth-image corner whose depth varies by more than this ratio
+  // within depth_edge_radius px lies on a depth edge (a silhouette): it gets
+  // no depth. On rendered RGB-D sequences these corners were the static
+  // points with the largest reprojection offsets. 0 turns the check off.
+  int depth_edge_radius = 2;          // px
+  double depth_edge_max_ratio = 0.1;  // of the corner's depth
+  // Ego-motion RANSAC (ours; DM-SLAM's ego-motion reuses DynaSLAM's light
+  // tracking with ORB-SLAM2's thresholds, which work on map points instead).
+  double ransac_reprojection_px = 2.0;  // PnP reprojection / F epipolar distance, px
+  double ransac_confidence = 0.99;
+  int ransac_iterations = 200;
+  int min_ego_points = 12;  // fewer usable points (or inliers): no estimate
+
+  // Missing keys keep their defaults; keys are the member names.
+  void read(const cv::FileNode& node);
+};
+
+// Harris corners on prev.grey, followed by pyramidal LK into cur.grey with a
+// forward-backward check; pairs with either end within `border` of the image
+// edge are rejected. prev_depth comes from prev.depth (CV_32FC1 metres) when
+// set; else, for stereo, from LK of the corner along the rectified row into
+// prev.right (|dy| <= 1 px, disparity > 0, depth = calib.bf / disparity);
+// else 0. Depth-image corners on a depth edge get 0 (depth_edge_* options).
+// in_candidate: inside prev.candidates at prev or cur.candidates at cur
+// (either may be empty). Pixels are raw (possibly distorted) image pixels.
+// Degenerate input (empty or mismatched images) gives no points.
+std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& cur,
+                                       const map::Calibration& calib, Sensor sensor,
+                                       const MotionCueOptions& o);
+
+// Ego-motion from the points with in_candidate == false only (DM-SLAM Sec.
+// 3.2.3): stereo / RGB-D: solvePnPRansac on the undistorted points with their
+// previous depth -> T_cur_prev; all sensors: F by RANSAC (OpenCV's
+// USAC_ACCURATE) on the undistorted pixels (q^T F p = 0, p previous, q current). valid: the sensor's estimate
+// (T_cur_prev for stereo / RGB-D, F for monocular) is usable; inlier/inliers
+// count the inliers of that estimate. Never throws: too few points or a
+// RANSAC failure give valid = false.
+EgoMotion estimate_ego_motion(const std::vector<TrackedPoint>& points, const map::Calibration& calib,
+                              Sensor sensor, const MotionCueOptions& o);
+
+}  // namespace dynaorb::dynamic

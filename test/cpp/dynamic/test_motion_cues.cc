@@ -1,0 +1,359 @@
+// Shared motion cues on rendered views of a known scene and camera motion:
+// flow accuracy, stereo depth, T_cur_prev and F against the truth, lens
+// distortion, candidate regions kept out of the ego-motion, degenerate input
+// and option reading.
+#include <gtest/gtest.h>
+
+#include "dynaorb/dynamic/motion_cues.h"
+#include "dynaorb/io/errors.h"
+#include "synthetic_scene.h"
+
+namespace dynaorb::dynamic {
+namespace {
+
+using namespace dynaorb::test::synth;
+
+// The camera moves by T_cur_prev between the two views (world = previous camera).
+const Eigen::Isometry3d kMotion = make_motion(0.5, 1.5, 0.3, {0.08, -0.02, 0.12});
+
+struct Pair {
+  FrameData prev, cur;
+  RenderedView prev_view, cur_view;
+};
+
+Pair render_pair(const std::vector<TexturedQuad>& prev_scene, const std::vector<TexturedQuad>& cur_scene,
+                 const map::Calibration& calib, Sensor sensor) {
+  Pair p;
+  p.prev_view = render(prev_scene, Eigen::Isometry3d::Identity(), calib);
+  p.cur_view = render(cur_scene, kMotion, calib);
+  p.prev.id = 0;
+  p.cur.id = 1;
+  p.prev.grey = p.prev_view.grey;
+  p.cur.grey = p.cur_view.grey;
+  if (sensor == Sensor::kRGBD) {
+    p.prev.depth = p.prev_view.depth;
+    p.cur.depth = p.cur_view.depth;
+  }
+  if (sensor == Sensor::kStereo) {
+    // The right camera sits baseline metres along +x of the left one.
+    Eigen::Isometry3d T_rl = Eigen::Isometry3d::Identity();
+    T_rl.translation() = Eigen::Vector3d(-calib.baseline, 0, 0);
+    p.prev.right = render(prev_scene, T_rl, calib).grey;
+    p.cur.right = render(cur_scene, T_rl * kMotion, calib).grey;
+  }
+  return p;
+}
+
+Pair render_pair(const map::Calibration& calib, Sensor sensor) {
+  return render_pair(room(), room(), calib, sensor);
+}
+
+// Where a previous pixel with true depth lands in the current image (raw pixels).
+cv::Point2f true_flow(const map::Calibration& calib, const cv::Point2f& prev, float depth) {
+  std::vector<cv::Point2f> in{prev}, u;
+  const cv::Matx33d K(calib.fx, 0, calib.cx, 0, calib.fy, calib.cy, 0, 0, 1);
+  if (!calib.dist.empty()) {
+    cv::undistortPoints(in, u, K, calib.dist, cv::noArray(), K);
+  } else {
+    u = in;
+  }
+  const Eigen::Vector3d X = kMotion * calib.unproject(u[0].x, u[0].y, depth);
+  std::vector<cv::Point3f> obj{cv::Point3f(X.x(), X.y(), X.z())};
+  std::vector<cv::Point2f> img;
+  cv::projectPoints(obj, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), K,
+                    calib.dist.empty() ? cv::Mat() : calib.dist, img);
+  return img[0];
+}
+
+// Epipolar distances of true correspondences (scene points on a pixel grid of
+// the previous view) under F, in undistorted pixels.
+std::vector<double> epipolar_errors(const cv::Matx33d& F, const map::Calibration& calib,
+                                    const RenderedView& prev_view) {
+  std::vector<double> d;
+  for (int v = 20; v < calib.height - 20; v += 20)
+    for (int u = 20; u < calib.width - 20; u += 20) {
+      const float z = prev_view.depth.at<float>(v, u);
+      if (!(z > 0)) continue;
+      cv::Point2f p(u, v);
+      const Eigen::Vector3d X = calib.unproject(u, v, z);  // undistorted rendering only
+      const Eigen::Vector2d q = calib.project(kMotion * X);
+      d.push_back(epipolar_distance(F, p, cv::Point2f(q.x(), q.y())));
+    }
+  return d;
+}
+
+TEST(MotionCues, RgbdTracksCornersAndRecoversTheCameraMotion) {
+  auto calib = make_calibration(Sensor::kRGBD);
+  Pair p = render_pair(*calib, Sensor::kRGBD);
+  const MotionCueOptions o;
+  const auto pts = track_points(p.prev, p.cur, *calib, Sensor::kRGBD, o);
+  ASSERT_GT(pts.size(), 300u);
+
+  std::vector<double> flow_err;
+  int with_depth = 0;
+  for (const auto& t : pts) {
+    EXPECT_FALSE(t.in_candidate);  // no candidates given
+    EXPECT_GE(t.prev.x, o.border);
+    EXPECT_GE(t.cur.y, o.border);
+    EXPECT_LE(t.cur.x, calib->width - 1 - o.border);
+    if (t.prev_depth > 0) {
+      ++with_depth;
+      const cv::Point2f q = true_flow(*calib, t.prev, t.prev_depth);
+      flow_err.push_back(cv::norm(q - t.cur));
+    }
+  }
+  EXPECT_GT(with_depth, 0.9 * pts.size());  // the rest lie on depth edges
+  EXPECT_LT(median(flow_err), 0.2);
+
+  const EgoMotion ego = estimate_ego_motion(pts, *calib, Sensor::kRGBD, o);
+  ASSERT_TRUE(ego.valid);
+  EXPECT_LT(rotation_error_deg(ego.T_cur_prev, kMotion), 0.1);
+  EXPECT_LT((ego.T_cur_prev.translation() - kMotion.translation()).norm(), 0.01);
+  EXPECT_GT(ego.inliers, 0.8 * pts.size());
+  ASSERT_EQ(ego.inlier.size(), pts.size());
+  EXPECT_EQ(std::count(ego.inlier.begin(), ego.inlier.end(), 1), ego.inliers);
+
+  ASSERT_TRUE(ego.has_F);
+  const auto d = epipolar_errors(ego.F, *calib, p.prev_view);
+  ASSERT_GT(d.size(), 200u);
+  EXPECT_LT(median(d), 0.3);
+  EXPECT_LT(percentile(d, 0.9), 1.0);
+}
+
+TEST(MotionCues, CornersOnDepthEdgesGetNoDepthAndNoCornerIsCountedTwice) {
+  auto calib = make_calibration(Sensor::kRGBD);
+  Pair p = render_pair(*calib, Sensor::kRGBD);
+  MotionCueOptions o;
+  const auto pts = track_points(p.prev, p.cur, *calib, Sensor::kRGBD, o);
+  ASSERT_GT(pts.size(), 300u);
+  auto on_edge = [&](const cv::Point2f& c) {
+    const cv::Rect r(cvRound(c.x) - o.depth_edge_radius, cvRound(c.y) - o.depth_edge_radius,
+                     2 * o.depth_edge_radius + 1, 2 * o.depth_edge_radius + 1);
+    double lo, hi;
+    cv::minMaxLoc(p.prev_view.depth(r), &lo, &hi);
+    const float z = p.prev_view.depth.at<float>(cvRound(c.y), cvRound(c.x));
+    return hi - lo > o.depth_edge_max_ratio * z;
+  };
+  int edges = 0;
+  for (const auto& t : pts) {
+    if (on_edge(t.prev)) {
+      ++edges;
+      EXPECT_EQ(t.prev_depth, 0.f);
+    } else {
+      EXPECT_GT(t.prev_depth, 0.f);
+    }
+  }
+  EXPECT_GT(edges, 5);  // the boxes' silhouettes against the wall
+  for (size_t i = 0; i < pts.size(); ++i)
+    for (size_t j = i + 1; j < pts.size(); ++j)
+      ASSERT_GE(cv::norm(pts[i].prev - pts[j].prev), o.min_distance / 2) << i << " " << j;
+
+  o.depth_edge_max_ratio = 0;  // check off: every corner keeps its depth
+  for (const auto& t : track_points(p.prev, p.cur, *calib, Sensor::kRGBD, o)) EXPECT_GT(t.prev_depth, 0.f);
+}
+
+TEST(MotionCues, StereoDepthFromTheRightImage) {
+  auto calib = make_calibration(Sensor::kStereo);
+  Pair p = render_pair(*calib, Sensor::kStereo);
+  const MotionCueOptions o;
+  const auto pts = track_points(p.prev, p.cur, *calib, Sensor::kStereo, o);
+  ASSERT_GT(pts.size(), 300u);
+  std::vector<double> rel;
+  for (const auto& t : pts) {
+    if (!(t.prev_depth > 0)) continue;
+    const float z = p.prev_view.depth.at<float>(cvRound(t.prev.y), cvRound(t.prev.x));
+    rel.push_back(std::abs(t.prev_depth - z) / z);
+  }
+  EXPECT_GT(rel.size(), 0.7 * pts.size());
+  EXPECT_LT(median(rel), 0.02);
+
+  const EgoMotion ego = estimate_ego_motion(pts, *calib, Sensor::kStereo, o);
+  ASSERT_TRUE(ego.valid);
+  EXPECT_LT(rotation_error_deg(ego.T_cur_prev, kMotion), 0.15);
+  EXPECT_LT((ego.T_cur_prev.translation() - kMotion.translation()).norm(), 0.02);
+}
+
+TEST(MotionCues, MonocularGivesTheFundamentalMatrixOnly) {
+  auto calib = make_calibration(Sensor::kMono);
+  Pair p = render_pair(*calib, Sensor::kMono);
+  const MotionCueOptions o;
+  const auto pts = track_points(p.prev, p.cur, *calib, Sensor::kMono, o);
+  ASSERT_GT(pts.size(), 300u);
+  for (const auto& t : pts) EXPECT_EQ(t.prev_depth, 0.f);
+  const EgoMotion ego = estimate_ego_motion(pts, *calib, Sensor::kMono, o);
+  ASSERT_TRUE(ego.valid);
+  ASSERT_TRUE(ego.has_F);
+  EXPECT_TRUE(ego.T_cur_prev.isApprox(Eigen::Isometry3d::Identity()));
+  const auto d = epipolar_errors(ego.F, *calib, p.prev_view);
+  EXPECT_LT(median(d), 0.3);
+  EXPECT_LT(percentile(d, 0.9), 1.0);
+}
+
+TEST(MotionCues, DistortedImagesAreUndistortedBeforeGeometry) {
+  const cv::Mat dist = (cv::Mat_<double>(1, 5) << -0.28, 0.09, 0.001, -0.0008, 0.0);
+  auto calib = make_calibration(Sensor::kRGBD, 640, 480, 500, 0.1, dist);
+  Pair p = render_pair(*calib, Sensor::kRGBD);
+  const MotionCueOptions o;
+  const auto pts = track_points(p.prev, p.cur, *calib, Sensor::kRGBD, o);
+  ASSERT_GT(pts.size(), 300u);
+  std::vector<double> flow_err;
+  for (const auto& t : pts)
+    if (t.prev_depth > 0) flow_err.push_back(cv::norm(true_flow(*calib, t.prev, t.prev_depth) - t.cur));
+  EXPECT_LT(median(flow_err), 0.2);
+
+  const EgoMotion ego = estimate_ego_motion(pts, *calib, Sensor::kRGBD, o);
+  ASSERT_TRUE(ego.valid);
+  const double rot_err = rotation_error_deg(ego.T_cur_prev, kMotion);
+  const double t_err = (ego.T_cur_prev.translation() - kMotion.translation()).norm();
+  EXPECT_LT(rot_err, 0.1);
+  EXPECT_LT(t_err, 0.01);
+
+  // The same pixels read as undistorted give a visibly worse pose: the
+  // undistortion is what makes the estimate right.
+  auto pinhole = std::make_shared<map::Calibration>(*calib);
+  pinhole->dist = cv::Mat();
+  const EgoMotion wrong = estimate_ego_motion(pts, *pinhole, Sensor::kRGBD, o);
+  const double wrong_t = wrong.valid ? (wrong.T_cur_prev.translation() - kMotion.translation()).norm() : 1e9;
+  const double wrong_r = wrong.valid ? rotation_error_deg(wrong.T_cur_prev, kMotion) : 1e9;
+  EXPECT_TRUE(wrong_t > 3 * t_err || wrong_r > 3 * rot_err || wrong.inliers < 0.8 * ego.inliers)
+      << "t " << wrong_t << " vs " << t_err << ", r " << wrong_r << " vs " << rot_err;
+}
+
+TEST(MotionCues, CandidateRegionsAreFlaggedAndLeftOutOfTheEgoMotion) {
+  auto calib = make_calibration(Sensor::kRGBD);
+  // A large textured "person" close to the camera that moves 12 cm sideways.
+  std::vector<TexturedQuad> prev_scene = room(), cur_scene = room();
+  TexturedQuad mover = facing_quad({0.1, 0.0, 1.8}, 0.45, 0.9, 200, 77, 15);
+  prev_scene.push_back(mover);
+  mover.T_wq.translation().x() += 0.12;
+  cur_scene.push_back(mover);
+  Pair p = render_pair(prev_scene, cur_scene, *calib, Sensor::kRGBD);
+  const int mover_index = static_cast<int>(prev_scene.size()) - 1;
+  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(11, 11));
+  cv::dilate(p.prev_view.labels == 15, p.prev.candidates, kernel);
+  cv::dilate(p.cur_view.labels == 15, p.cur.candidates, kernel);
+
+  const MotionCueOptions o;
+  const auto pts = track_points(p.prev, p.cur, *calib, Sensor::kRGBD, o);
+  int on_mover = 0;
+  for (const auto& t : pts) {
+    const bool mover_px = p.prev_view.object.at<int>(cvRound(t.prev.y), cvRound(t.prev.x)) == mover_index;
+    if (mover_px) {
+      ++on_mover;
+      EXPECT_TRUE(t.in_candidate);
+    }
+  }
+  ASSERT_GT(on_mover, 40) << pts.size();
+  const EgoMotion ego = estimate_ego_motion(pts, *calib, Sensor::kRGBD, o);
+  ASSERT_TRUE(ego.valid);
+  for (size_t i = 0; i < pts.size(); ++i)
+    if (pts[i].in_candidate) { EXPECT_EQ(ego.inlier[i], 0); }
+  EXPECT_LT(rotation_error_deg(ego.T_cur_prev, kMotion), 0.1);
+  EXPECT_LT((ego.T_cur_prev.translation() - kMotion.translation()).norm(), 0.01);
+
+  // Every point a candidate: nothing is left to estimate from.
+  auto all = pts;
+  for (auto& t : all) t.in_candidate = true;
+  const EgoMotion none = estimate_ego_motion(all, *calib, Sensor::kRGBD, o);
+  EXPECT_FALSE(none.valid);
+  EXPECT_FALSE(none.has_F);
+  EXPECT_EQ(none.inliers, 0);
+  EXPECT_EQ(none.inlier.size(), all.size());
+}
+
+TEST(MotionCues, DegenerateInputGivesNothingAndNeverThrows) {
+  auto calib = make_calibration(Sensor::kRGBD);
+  Pair p = render_pair(*calib, Sensor::kRGBD);
+  const MotionCueOptions o;
+
+  FrameData empty;  // no previous frame
+  EXPECT_TRUE(track_points(empty, p.cur, *calib, Sensor::kRGBD, o).empty());
+  EXPECT_TRUE(track_points(p.prev, empty, *calib, Sensor::kRGBD, o).empty());
+
+  FrameData small = p.cur;
+  small.grey = p.cur.grey(cv::Rect(0, 0, 320, 240)).clone();
+  EXPECT_TRUE(track_points(p.prev, small, *calib, Sensor::kRGBD, o).empty());
+
+  FrameData colour = p.cur;
+  cv::cvtColor(p.cur.grey, colour.grey, cv::COLOR_GRAY2BGR);
+  EXPECT_TRUE(track_points(p.prev, colour, *calib, Sensor::kRGBD, o).empty());
+
+  FrameData flat = p.prev, flat_cur = p.cur;
+  flat.grey = cv::Mat(480, 640, CV_8UC1, cv::Scalar(128));
+  flat_cur.grey = flat.grey.clone();
+  EXPECT_TRUE(track_points(flat, flat_cur, *calib, Sensor::kRGBD, o).empty());
+
+  FrameData tiny = p.prev, tiny_cur = p.cur;
+  tiny.grey = p.prev.grey(cv::Rect(0, 0, 15, 15)).clone();
+  tiny_cur.grey = tiny.grey.clone();
+  tiny.depth = cv::Mat();
+  EXPECT_TRUE(track_points(tiny, tiny_cur, *calib, Sensor::kRGBD, o).empty());
+
+  // Depth with holes and NaN: those points get no depth, the rest keep theirs.
+  FrameData holes = p.prev;
+  holes.depth = p.prev.depth.clone();
+  holes.depth(cv::Rect(0, 0, 320, 480)).setTo(std::numeric_limits<float>::quiet_NaN());
+  holes.depth(cv::Rect(320, 0, 320, 240)).setTo(0);
+  const auto with_holes = track_points(holes, p.cur, *calib, Sensor::kRGBD, o);
+  ASSERT_FALSE(with_holes.empty());
+  int zero = 0;
+  for (const auto& t : with_holes) {
+    EXPECT_TRUE(std::isfinite(t.prev_depth));
+    if (t.prev.x < 319 || t.prev.y < 239) { EXPECT_EQ(t.prev_depth, 0.f); }
+    zero += t.prev_depth == 0.f;
+  }
+  EXPECT_GT(zero, 0);
+
+  // No depth at all (wrong type): the pose cannot be estimated, F still is.
+  FrameData no_depth = p.prev;
+  p.prev.depth.convertTo(no_depth.depth, CV_16UC1, 5000);
+  const auto pts = track_points(no_depth, p.cur, *calib, Sensor::kRGBD, o);
+  ASSERT_GT(pts.size(), 100u);
+  const EgoMotion e = estimate_ego_motion(pts, *calib, Sensor::kRGBD, o);
+  EXPECT_FALSE(e.valid);
+  EXPECT_TRUE(e.has_F);
+
+  // Too few points, none, NaN, and a calibration without focal length.
+  const auto good = track_points(p.prev, p.cur, *calib, Sensor::kRGBD, o);
+  std::vector<TrackedPoint> few(good.begin(), good.begin() + 7);
+  EXPECT_FALSE(estimate_ego_motion(few, *calib, Sensor::kRGBD, o).valid);
+  EXPECT_FALSE(estimate_ego_motion({}, *calib, Sensor::kMono, o).valid);
+  std::vector<TrackedPoint> nan = good;
+  for (auto& t : nan) t.cur.x = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_FALSE(estimate_ego_motion(nan, *calib, Sensor::kRGBD, o).valid);
+  map::Calibration bad = *calib;
+  bad.fx = 0;
+  EXPECT_FALSE(estimate_ego_motion(good, bad, Sensor::kRGBD, o).valid);
+
+  // All points identical: RANSAC has nothing to fit.
+  std::vector<TrackedPoint> same(30);
+  for (auto& t : same) {
+    t.prev = t.cur = cv::Point2f(100, 100);
+    t.prev_depth = 2;
+  }
+  const EgoMotion s = estimate_ego_motion(same, *calib, Sensor::kRGBD, o);
+  EXPECT_FALSE(s.valid);
+}
+
+TEST(MotionCues, OptionsReadFromYaml) {
+  cv::FileStorage fs(
+      "%YAML:1.0\nmotion:\n  max_corners: 500\n  use_harris: 0\n  border: 5\n  forward_backward_max: 0.5\n"
+      "bad:\n  max_corners: many\n",
+      cv::FileStorage::READ | cv::FileStorage::MEMORY);
+  MotionCueOptions o;
+  o.read(fs["motion"]);
+  EXPECT_EQ(o.max_corners, 500);
+  EXPECT_FALSE(o.use_harris);
+  EXPECT_EQ(o.border, 5);
+  EXPECT_DOUBLE_EQ(o.forward_backward_max, 0.5);
+  EXPECT_DOUBLE_EQ(o.quality_level, 0.01);  // missing: default kept
+  EXPECT_EQ(o.min_ego_points, 12);
+  MotionCueOptions b;
+  EXPECT_THROW(b.read(fs["bad"]), InputError);
+  MotionCueOptions c;
+  c.read(fs["absent"]);
+  EXPECT_EQ(c.max_corners, 1000);
+}
+
+}  // namespace
+}  // namespace dynaorb::dynamic
