@@ -6,6 +6,7 @@
 #include <tf2_eigen/tf2_eigen.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include <algorithm>
 #include <limits>
 #include <map>
 
@@ -48,8 +49,10 @@ OctomapNode::OctomapNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh
   srv_save_ = pnh_.advertiseService("save", &OctomapNode::on_save, this);
 
   tf_listener_ = std::make_unique<tf2_ros::TransformListener>(tf_buffer_);
-  sub_ = std::make_unique<message_filters::Subscriber<sensor_msgs::PointCloud2>>(nh_, "cloud_in", 5);
-  filter_ = std::make_unique<tf2_ros::MessageFilter<sensor_msgs::PointCloud2>>(*sub_, tf_buffer_, frame_id_, 10, nh_);
+  // octomap_server queues 5 clouds; a node that maps every keyframe of a bag needs more.
+  const int queue = std::max(1, pnh_.param("queue_size", 5));
+  sub_ = std::make_unique<message_filters::Subscriber<sensor_msgs::PointCloud2>>(nh_, "cloud_in", queue);
+  filter_ = std::make_unique<tf2_ros::MessageFilter<sensor_msgs::PointCloud2>>(*sub_, tf_buffer_, frame_id_, queue, nh_);
   filter_->registerCallback(&OctomapNode::on_cloud, this);
   filter_->registerFailureCallback(
       [this](const sensor_msgs::PointCloud2ConstPtr& cloud, tf2_ros::filter_failure_reasons::FilterFailureReason) {

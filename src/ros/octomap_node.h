@@ -15,7 +15,8 @@
 //             ~sensor_model/{hit 0.7, miss 0.4, min 0.12, max 0.97, max_range -1},
 //             ~pointcloud_min_z / ~pointcloud_max_z (unbounded), ~occupancy_min_z /
 //             ~occupancy_max_z (cells published and projected; unbounded), ~latch
-//             (true), ~projected_map (true).
+//             (true), ~projected_map (true), ~queue_size (clouds waiting for TF or
+//             insertion, 5).
 #include <message_filters/subscriber.h>
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>

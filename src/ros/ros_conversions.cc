@@ -13,13 +13,14 @@ namespace enc = sensor_msgs::image_encodings;
 cv::Mat image_for_tracking(const sensor_msgs::ImageConstPtr& msg, bool rgb_order, std::string& error) {
   try {
     const std::string& e = msg->encoding;
-    if (e == enc::MONO8 || e == enc::TYPE_8UC1) return cv_bridge::toCvShare(msg)->image;
+    // Copies: frames may wait for their labels after the message is gone.
+    if (e == enc::MONO8 || e == enc::TYPE_8UC1) return cv_bridge::toCvShare(msg)->image.clone();
     if (e == enc::MONO16 || e == enc::TYPE_16UC1) {
       cv::Mat grey;
       cv_bridge::toCvShare(msg)->image.convertTo(grey, CV_8U, 1.0 / 256.0);
       return grey;
     }
-    return cv_bridge::toCvShare(msg, rgb_order ? enc::RGB8 : enc::BGR8)->image;
+    return cv_bridge::toCvCopy(msg, rgb_order ? enc::RGB8 : enc::BGR8)->image;
   } catch (const cv_bridge::Exception& ex) {
     error = std::string("cannot read a '") + msg->encoding + "' image: " + ex.what();
     return {};
@@ -29,7 +30,7 @@ cv::Mat image_for_tracking(const sensor_msgs::ImageConstPtr& msg, bool rgb_order
 cv::Mat depth_in_metres(const sensor_msgs::ImageConstPtr& msg, double depth_map_factor, std::string& error) {
   try {
     const std::string& e = msg->encoding;
-    if (e == enc::TYPE_32FC1) return cv_bridge::toCvShare(msg)->image;
+    if (e == enc::TYPE_32FC1) return cv_bridge::toCvShare(msg)->image.clone();
     if (e == enc::TYPE_16UC1 || e == enc::MONO16) {
       cv::Mat m;
       cv_bridge::toCvShare(msg)->image.convertTo(m, CV_32F, 1.0 / depth_map_factor);
@@ -49,7 +50,7 @@ cv::Mat label_image(const sensor_msgs::ImageConstPtr& msg, std::string& error) {
     return {};
   }
   try {
-    return cv_bridge::toCvShare(msg)->image;
+    return cv_bridge::toCvShare(msg)->image.clone();
   } catch (const cv_bridge::Exception& ex) {
     error = std::string("cannot read the labels: ") + ex.what();
     return {};

@@ -1,6 +1,7 @@
 #pragma once
 // Small conversions between ROS messages and what the core and the support
-// code take: images through cv_bridge, clouds into PointCloud2.
+// code take: images through cv_bridge (always copied out of the message),
+// clouds into PointCloud2.
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/PointCloud2.h>
 

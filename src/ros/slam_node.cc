@@ -185,6 +185,16 @@ void SlamNode::on_pair(const sensor_msgs::ImageConstPtr& a, const sensor_msgs::I
 
 void SlamNode::on_camera_info(const sensor_msgs::CameraInfoConstPtr& info, bool right) {
   (right ? info_right_ : info_left_) = info;
+  if (system_ || before_info_.empty()) return;
+  try {
+    if (!ensure_system()) return;
+  } catch (const std::exception& e) {
+    ROS_ERROR_THROTTLE(5.0, "dynaorb_node: camera_info unusable: %s", e.what());
+    return;
+  }
+  std::deque<Held> held;
+  held.swap(before_info_);
+  for (const Held& h : held) process(h.frame, h.labels, h.label_age);
 }
 
 void SlamNode::on_labels(const sensor_msgs::ImageConstPtr& msg) {
@@ -337,9 +347,14 @@ bool SlamNode::dense_view(const FrameInput& f, const cv::Mat& exclusion, DenseVi
 void SlamNode::process(const FrameInput& f, const cv::Mat& labels, double label_age) {
   try {
     if (!ensure_system()) {
-      ++counters_.waiting_for_camera_info;
-      ROS_WARN_THROTTLE(5.0, "dynaorb_node: waiting for camera_info (%ld frames dropped)",
-                        counters_.waiting_for_camera_info.load());
+      // Held until the camera_info (which may follow its image) arrives; the oldest dropped beyond the queue.
+      before_info_.push_back({f, labels, label_age});
+      if (static_cast<int>(before_info_.size()) > cfg_.node.queue_size) {
+        before_info_.pop_front();
+        ++counters_.waiting_for_camera_info;
+        ROS_WARN_THROTTLE(5.0, "dynaorb_node: waiting for camera_info (%ld frames dropped)",
+                          counters_.waiting_for_camera_info.load());
+      }
       return;
     }
   } catch (const std::exception& e) {

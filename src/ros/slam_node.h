@@ -126,6 +126,13 @@ class SlamNode {
   sensor_msgs::CameraInfoConstPtr info_left_, info_right_;
   std::map<double, cv::Mat> labels_;  // by stamp, newest kept
   std::deque<std::pair<FrameInput, ros::WallTime>> waiting_;
+  // Frames (with their labels) that came before the first camera_info.
+  struct Held {
+    FrameInput frame;
+    cv::Mat labels;
+    double label_age;
+  };
+  std::deque<Held> before_info_;
   ros::WallTimer label_timer_;
 
   // Outputs.
