@@ -37,7 +37,7 @@ class BagFrame:
     stamp: float
     image: np.ndarray
     right: np.ndarray | None = None
-    depth: np.ndarray | None = None   # in the System's units (DepthMapFactor), float32
+    depth: np.ndarray | None = None   # in the System's units (DepthMapFactor): uint16 as stored, or float32
     labels: np.ndarray | None = None  # class ids, when the bag carries them
     image_path: str = ""              # "topic@stamp", for messages
 
@@ -243,9 +243,13 @@ class BagProvider:
             if "right" in msgs:
                 frame.right = m.image_for_tracking(msgs["right"], s.rgb)
             if "depth" in msgs:
-                # The System divides depth by DepthMapFactor whatever its type (the node's rule).
-                factor = np.float32(s.depth_map_factor or 1.0)
-                frame.depth = m.depth_in_metres(msgs["depth"], float(factor)) * factor
+                depth = msgs["depth"]
+                if depth.encoding in ("16UC1", "mono16"):
+                    frame.depth = m.image_array(depth)  # as stored: the System divides by DepthMapFactor
+                else:
+                    # Metres: the System divides depth by DepthMapFactor whatever its type (the node's rule).
+                    factor = np.float32(s.depth_map_factor or 1.0)
+                    frame.depth = m.depth_in_metres(depth, float(factor)) * factor
             if "labels" in msgs:
                 frame.labels = m.image_array(msgs["labels"])
         except ValueError as exc:
