@@ -145,11 +145,14 @@ NodeConfig read_config(const ros::NodeHandle& pnh) {
   n.max_frames_waiting = param(pnh, "max_frames_waiting", n.max_frames_waiting);
   n.label_wait_timeout = param(pnh, "label_wait_timeout", n.label_wait_timeout);
   n.max_label_age = param(pnh, "max_label_age", n.max_label_age);
-  n.movable_ids = param(pnh, "movable_ids", kPascalVocMovable);
+  n.movable_ids_given = pnh.getParam("movable_ids", n.movable_ids);
+  if (!n.movable_ids_given) n.movable_ids = kPascalVocMovable;
+  n.movable_ids_from = param<std::string>(pnh, "movable_ids_from", n.movable_ids_from);
 
   // Dense cloud.
   n.publish_cloud = param(pnh, "publish_cloud", n.publish_cloud);
   n.publish_unfiltered_cloud = param(pnh, "publish_unfiltered_cloud", n.publish_unfiltered_cloud);
+  n.inpaint = param(pnh, "cloud/inpaint", n.inpaint);
   n.cloud.max_depth = param(pnh, "cloud/max_depth", n.cloud.max_depth);
   n.cloud.min_depth = param(pnh, "cloud/min_depth", n.cloud.min_depth);
   n.cloud.stride = param(pnh, "cloud/stride", n.cloud.stride);

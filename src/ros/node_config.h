@@ -43,10 +43,19 @@ struct NodeOptions {
   int max_frames_waiting = 30;    //   at most this many frames wait; older ones go without labels
   double label_wait_timeout = 1.0;  //   nor longer than this (wall-clock s): labels that never come
   double max_label_age = 0.5;     // s: newest labels older than this are not used (live)
-  std::vector<int> movable_ids;   // label ids masked; default PASCAL VOC's movable classes
+  // Label ids masked: ~movable_ids; without it, those the segmentation server
+  // announces (~movable_ids_from, its ~movable_ids parameter) once labels
+  // arrive, else PASCAL VOC's movable classes.
+  std::vector<int> movable_ids;
+  bool movable_ids_given = false;
+  std::string movable_ids_from = "/segmentation_server/movable_ids";
 
   bool publish_cloud = true;             // per keyframe, camera frame
   bool publish_unfiltered_cloud = false; // also cloud_unfiltered: the same without the mask (diagnostics)
+  // Masked pixels filled from earlier keyframes (DDL-SLAM's background
+  // inpainting): comes with System::dense_frame(inpaint); until then the
+  // masked pixels are left out and a warning says so.
+  bool inpaint = false;
   DenseCloudOptions cloud;
   StereoDepthOptions sgbm;
 };

@@ -205,7 +205,13 @@ void SlamNode::on_labels(const sensor_msgs::ImageConstPtr& msg) {
     ROS_WARN_THROTTLE(5.0, "dynaorb_node: labels skipped: %s", error.c_str());
     return;
   }
-  ++counters_.labels_in;
+  if (counters_.labels_in++ == 0 && !cfg_.node.movable_ids_given && !cfg_.node.movable_ids_from.empty()) {
+    std::vector<int> ids;
+    if (nh_.getParam(cfg_.node.movable_ids_from, ids) && !ids.empty()) {
+      cfg_.node.movable_ids = ids;
+      ROS_INFO("dynaorb_node: masking the %zu movable classes of %s", ids.size(), cfg_.node.movable_ids_from.c_str());
+    }
+  }
   labels_[msg->header.stamp.toSec()] = labels;
   while (labels_.size() > 64) labels_.erase(labels_.begin());
   if (cfg_.node.wait_for_labels) drain_waiting(false);
@@ -313,6 +319,9 @@ cv::Mat SlamNode::dynamic_mask(const FrameInput&, const cv::Mat& exclusion) cons
 bool SlamNode::dense_view(const FrameInput& f, const cv::Mat& exclusion, DenseView& view) {
   // Hook: System::dense_frame(inpaint) once the dynamic front end is in
   // (colour, depth incl. SGBM depth for stereo, dynamic mask).
+  if (cfg_.node.inpaint)
+    ROS_WARN_ONCE("dynaorb_node: ~cloud/inpaint needs the dynamic front end's dense frames: the masked pixels "
+                  "are left out of the cloud, not inpainted");
   const CameraSettings& c = system_->settings().camera;
   cv::Mat K = (cv::Mat_<double>(3, 3) << c.fx, 0, c.cx, 0, c.fy, c.cy, 0, 0, 1);
   view.exclude = exclusion.empty() ? cv::Mat() : exclusion;

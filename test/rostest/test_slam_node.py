@@ -33,18 +33,22 @@ import rosgraph
 import rospy
 import rostest
 import tf2_ros
+from geometry_msgs.msg import Point
 from nav_msgs.msg import OccupancyGrid, Odometry
 from sensor_msgs import point_cloud2
-from sensor_msgs.msg import PointCloud2
-from std_srvs.srv import Trigger
+from sensor_msgs.msg import Image, PointCloud2
+from std_srvs.srv import Empty, SetBool, Trigger
 
 from dynaorb.msg import TrackingStatus
+from dynaorb.srv import ClearBBX, MapFile
 
 
 def prepare_bag(kind: str, source: str, bag: pathlib.Path, synth: bool, movers: int, frames: int) -> None:
     """Writes the bag (and its sidecars) unless a complete one is cached."""
     done = bag.with_name(bag.name + ".done")
-    if bag.is_file() and done.is_file():
+    recipe = json.dumps({"kind": kind, "source": source, "synth": synth, "movers": movers, "frames": frames,
+                         "version": 1})
+    if bag.is_file() and done.is_file() and done.read_text() == recipe:
         return
     from dynaorb.ros.bag import BagWriteOptions, write_dataset_bag
 
@@ -55,7 +59,7 @@ def prepare_bag(kind: str, source: str, bag: pathlib.Path, synth: bool, movers: 
         generate(source, SynthConfig(sensor="rgbd" if kind == "tum" else "stereo", movers=movers, frames=frames))
         labels = str(pathlib.Path(source) / "labels") if kind == "tum" else None
     write_dataset_bag(BagWriteOptions(kind=kind, path=source, out=str(bag), labels=labels))
-    done.write_text("ok\n")
+    done.write_text(recipe)
 
 
 def quaternion_matrix(q) -> np.ndarray:
@@ -101,6 +105,9 @@ class SlamNodeTest(unittest.TestCase):
         rospy.Subscriber("/odom", Odometry, lambda m: cls._add(cls.odom, m), queue_size=1000)
         rospy.Subscriber("/cloud", PointCloud2, lambda m: cls._add(cls.clouds, m), queue_size=100,
                          buff_size=1 << 26)
+        cls.masks = []  # (stamp, fraction of masked pixels)
+        rospy.Subscriber("/dynamic_mask", Image, lambda m: cls._add(cls.masks, (m.header.stamp, m.encoding, np.mean(
+            np.frombuffer(m.data, np.uint8) > 0))), queue_size=1000, buff_size=1 << 26)
         for ns in ("", "/raw"):
             rospy.Subscriber(ns + "/octomap_point_cloud_centers", PointCloud2,
                              lambda m, ns=ns: cls.octomaps.__setitem__(ns, m), queue_size=1, buff_size=1 << 26)
@@ -241,6 +248,38 @@ class SlamNodeTest(unittest.TestCase):
         else:
             self.assertEqual(self.stats["labels_in"], 0)
             self.assertFalse(any(s.mask_used for s in self.status))
+
+    def test_dynamic_mask_per_frame(self):
+        self.assertEqual([s for s, _, _ in self.masks], [s.header.stamp for s in self.status])
+        self.assertTrue(all(e == "mono8" for _, e, _ in self.masks))
+        masked = np.array([f for _, _, f in self.masks])
+        if self.labels_mode == "bag":  # the synthetic movers cover about a third of the image
+            self.assertGreater(masked.mean(), 0.1)
+        elif self.labels_mode == "none":
+            self.assertEqual(masked.max(), 0.0)
+
+    def test_zz_services(self):
+        """Last (alphabetical order): the services change the node's state."""
+        folder = pathlib.Path(os.environ.get("ROS_HOME", "/tmp")) / "dynaorb_rostest" / rospy.get_name().strip("/")
+        folder.mkdir(parents=True, exist_ok=True)
+        res = rospy.ServiceProxy("/dynaorb/save_map", MapFile)(str(folder / "slam.map"))
+        self.assertTrue(res.success, res.message)
+        self.assertTrue((folder / "slam.map").is_file())
+        self.assertTrue(rospy.ServiceProxy("/dynaorb/set_localization_mode", SetBool)(True).success)
+        self.assertTrue(rospy.ServiceProxy("/dynaorb/reset", Trigger)().success)
+        res = rospy.ServiceProxy("/dynaorb/load_map", MapFile)(str(folder / "slam.map"))
+        self.assertTrue(res.success, res.message)
+        bad = rospy.ServiceProxy("/dynaorb/load_map", MapFile)(str(folder / "missing.map"))
+        self.assertFalse(bad.success)
+        for ext in ("bt", "ot"):
+            res = rospy.ServiceProxy("/octomap/save", MapFile)(str(folder / f"octomap.{ext}"))
+            self.assertTrue(res.success, res.message)
+            self.assertGreater((folder / f"octomap.{ext}").stat().st_size, 100)
+        self.assertFalse(rospy.ServiceProxy("/octomap/save", MapFile)(str(folder / "octomap.txt")).success)
+        cleared = rospy.ServiceProxy("/octomap/clear_bbx", ClearBBX)
+        big = cleared(min=Point(-1e3, -1e3, -1e3), max=Point(1e3, 1e3, 1e3))
+        self.assertGreater(big.cleared, 0)
+        rospy.ServiceProxy("/octomap/reset", Empty)()
 
     def test_no_occupied_voxels_on_the_movers_paths(self):
         if not rospy.get_param("~mover_check", False):
