@@ -486,7 +486,7 @@ void SlamNode::publish_pose(const FrameInput& f, const Pose& T_wc, const std::st
 
 void SlamNode::publish_keyframe_outputs(const FrameInput& f, const cv::Mat& exclusion) {
   const NodeOptions& n = cfg_.node;
-  if (pub_map_points_.getNumSubscribers() > 0) {
+  {  // latched: always published, so that a late subscriber gets the current map
     std::vector<Eigen::Vector3d> world;
     Eigen::Isometry3d T_map_cam0;
     {

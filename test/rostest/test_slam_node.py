@@ -105,6 +105,9 @@ class SlamNodeTest(unittest.TestCase):
         rospy.Subscriber("/odom", Odometry, lambda m: cls._add(cls.odom, m), queue_size=1000)
         rospy.Subscriber("/cloud", PointCloud2, lambda m: cls._add(cls.clouds, m), queue_size=100,
                          buff_size=1 << 26)
+        rospy.Subscriber("/map_points", PointCloud2, lambda m: cls._add(cls.map_points, m), queue_size=100,
+                         buff_size=1 << 24)
+        cls.map_points = []
         cls.masks = []  # (stamp, fraction of masked pixels)
         rospy.Subscriber("/dynamic_mask", Image, lambda m: cls._add(cls.masks, (m.header.stamp, m.encoding, np.mean(
             np.frombuffer(m.data, np.uint8) > 0))), queue_size=1000, buff_size=1 << 26)
@@ -122,6 +125,10 @@ class SlamNodeTest(unittest.TestCase):
         cls.frames = cls.bag_topics[image_topic]
         play = [t for t in cls.bag_topics if p("play_labels", True) or not t.endswith("/labels")]
         cls._wait_for_subscriber(image_topic, 90.0)
+        if cls.labels_mode == "server":  # its model loaded (it sets ~movable_ids then)
+            deadline = time.time() + 90.0
+            while not rospy.has_param("/segmentation_server/movable_ids") and time.time() < deadline:
+                time.sleep(0.2)
         t0 = time.time()
         subprocess.run(["rosbag", "play", "--clock", "-q", "-d", "1", str(cls.bag), "--topics", *play],
                        check=True, stdout=subprocess.DEVNULL, timeout=300)
@@ -221,6 +228,15 @@ class SlamNodeTest(unittest.TestCase):
             self.assertGreater(len(xyz), 1000)
             self.assertTrue(np.all(np.isfinite(xyz)))
             self.assertTrue(np.all(xyz[:, 2] > 0) and np.all(xyz[:, 2] <= self.max_depth + 1e-4))
+
+    def test_map_points_per_keyframe(self):
+        keyframe_stamps = [s.header.stamp for s in self.status if s.new_keyframe]
+        self.assertEqual([m.header.stamp for m in self.map_points], keyframe_stamps)
+        last = self.map_points[-1]
+        self.assertEqual(last.header.frame_id, "map")
+        self.assertEqual(last.width, self.stats["map_points"])
+        xyz = cloud_xyz(last)
+        self.assertTrue(np.all(np.isfinite(xyz)))
 
     def test_trajectory_matches_ground_truth(self):
         self.assertIn("ate", self.report, self.report)

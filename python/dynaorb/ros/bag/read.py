@@ -14,7 +14,6 @@ from __future__ import annotations
 import bisect
 import collections
 import dataclasses
-import logging
 import pathlib
 
 import numpy as np
@@ -23,8 +22,6 @@ from rosbags.rosbag1 import Reader
 from dynaorb import core
 from dynaorb.ros.bag import messages as m
 from dynaorb.ros.bag.write import sidecar
-
-log = logging.getLogger(__name__)
 
 ROLES = ("image", "right", "depth", "labels")
 _LAYOUTS = (m.TUM_TOPICS, m.STEREO_TOPICS, m.EUROC_TOPICS)
