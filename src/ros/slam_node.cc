@@ -103,7 +103,6 @@ SlamNode::SlamNode(ros::NodeHandle nh, ros::NodeHandle pnh)
 
 SlamNode::~SlamNode() {
   if (service_spinner_) service_spinner_->stop();
-  ROS_INFO("dynaorb_node: %s", stats_json().c_str());
 }
 
 void SlamNode::subscribe() {

@@ -1,6 +1,8 @@
 // dynaorb_node: the SLAM node (see slam_node.h for its topics, services and parameters).
 #include <ros/ros.h>
 
+#include <cstdio>
+
 #include "slam_node.h"
 
 int main(int argc, char** argv) {
@@ -14,5 +16,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   ros::spin();
+  // What degraded over the run (rosout is gone by now).
+  std::fprintf(stderr, "dynaorb_node: %s\n", node->stats_json().c_str());
   return 0;
 }
