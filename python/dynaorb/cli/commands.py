@@ -158,3 +158,35 @@ def cmd_vocab_default(args) -> int:
 
     print(build_default(force=args.force))
     return 0
+
+
+def cmd_bag_from_dataset(args) -> int:
+    from dynaorb.ros.bag import BagWriteOptions, write_dataset_bag
+
+    summary = write_dataset_bag(BagWriteOptions(kind=args.kind, path=args.path, out=args.output, sensor=args.sensor,
+                                                depth_encoding=args.depth_encoding, labels=args.labels,
+                                                stamp_offset=args.stamp_offset, max_frames=args.max_frames,
+                                                progress=not args.quiet))
+    topics = ", ".join(f"{role} {topic}" for role, topic in summary["topics"].items())
+    print(f"{summary['frames']} frames ({summary['sensor']}) written to {args.output}: {topics}"
+          + (f"; {summary['labels']} label images" if args.labels else "")
+          + f"; sidecars: {', '.join(v for k, v in summary['files'].items() if k != 'bag')}")
+    return 0
+
+
+def cmd_bag_run(args) -> int:
+    from dynaorb.ros.bag import BagRunOptions, run_bag
+
+    topics = {}
+    for item in args.topic:
+        role, sep, topic = item.partition("=")
+        if not sep or not topic:
+            raise ValueError(f"--topic {item!r}: expected ROLE=TOPIC")
+        topics[role] = topic
+    stats = run_bag(BagRunOptions(bag=args.bag, config=args.config, sensor=args.sensor, topics=topics or None,
+                                  out=args.out, ground_truth=args.ground_truth, use_labels=not args.no_labels,
+                                  max_diff=args.max_diff, vocabulary=args.vocabulary, dynamic=args.dynamic,
+                                  synchronous_mapping=not args.async_mapping, save_map=args.save_map,
+                                  progress=not args.quiet))
+    print(summary_line(args.out, stats))
+    return 0

@@ -1,4 +1,4 @@
-"""dynaorb command line: run, eval, synth, demo, config, models, segment, vocab, bench."""
+"""dynaorb command line: run, eval, synth, demo, config, models, segment, vocab, bench, bag."""
 from __future__ import annotations
 
 import argparse
@@ -139,6 +139,43 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--sequence", nargs=2, metavar=("KIND", "PATH"),
                    help="sequence for the SLAM runs (default: a synthetic 60-frame RGB-D sequence)")
     b.set_defaults(func=commands.cmd_bench)
+
+    bg = sub.add_parser("bag", help="ROS 1 bags: write a dataset sequence as a bag, run SLAM on a bag")
+    bsub = bg.add_subparsers(dest="bag_command", required=True)
+    bf = bsub.add_parser("from-dataset", help="write a TUM, KITTI or EuRoC sequence as a ROS 1 bag (rosbags), "
+                                              "with BAG-stem.settings.yaml and BAG-stem.groundtruth.tum beside it")
+    bf.add_argument("kind", choices=["tum", "kitti", "euroc"])
+    bf.add_argument("path", help="TUM sequence folder, KITTI ROOT/sequences/NN, or EuRoC folder (with mav0)")
+    bf.add_argument("-o", "--output", required=True, metavar="BAG")
+    bf.add_argument("--sensor", choices=["mono", "stereo", "rgbd"], help="default: the richest the dataset has")
+    bf.add_argument("--depth-encoding", choices=["32FC1", "16UC1"], default="32FC1",
+                    help="RGB-D depth: 32FC1 metres with NaN for no depth, as TUM's bags (default), or 16UC1 "
+                         "in the PNGs' units (DepthMapFactor)")
+    bf.add_argument("--labels", metavar="DIR", help="folder of per-frame label images named like the frames "
+                                                    "(e.g. `dynaorb synth`'s labels/): written on the labels topic")
+    bf.add_argument("--stamp-offset", type=float, help="seconds added to every stamp (default: 1 for sequences "
+                                                       "starting below 1 s, as KITTI's, else 0)")
+    bf.add_argument("--max-frames", type=int, help="only the first N frames")
+    bf.add_argument("--quiet", action="store_true")
+    bf.set_defaults(func=commands.cmd_bag_from_dataset)
+    br = bsub.add_parser("run", help="run SLAM on a bag serially and repeatably (every frame, no wall clock)")
+    br.add_argument("bag")
+    br.add_argument("--config", help="ORB-SLAM2 settings YAML (default: BAG-stem.settings.yaml)")
+    br.add_argument("--sensor", choices=["mono", "stereo", "rgbd"], help="default: the richest the topics allow")
+    br.add_argument("--topic", action="append", default=[], metavar="ROLE=TOPIC",
+                    help="topic of a role (image, right, depth, labels); default: TUM, KITTI-style stereo or "
+                         "EuRoC names found in the bag")
+    br.add_argument("--out", default="out/bag", help="output folder (default out/bag)")
+    br.add_argument("--ground-truth", help="TUM file (default: BAG-stem.groundtruth.tum when present)")
+    br.add_argument("--no-labels", action="store_true", help="ignore a labels topic in the bag")
+    br.add_argument("--max-diff", type=float, default=0.02, help="RGB-D colour/depth association [s]")
+    br.add_argument("--vocabulary", default="default", metavar="FILE|default|none")
+    br.add_argument("--dynamic", default="off", help="dynamic-object front-end preset (default off)")
+    br.add_argument("--async-mapping", action="store_true",
+                    help="local mapping concurrently (default: each keyframe mapped before the next frame)")
+    br.add_argument("--save-map", metavar="OUT.map")
+    br.add_argument("--quiet", action="store_true")
+    br.set_defaults(func=commands.cmd_bag_run)
 
     c = sub.add_parser("config", help="write the settings derived from a dataset's calibration")
     c.add_argument("kind", choices=["tum", "kitti", "euroc"])

@@ -28,6 +28,7 @@ import numpy as np
 from dynaorb import core
 from dynaorb.runner.frames import readable_frames
 from dynaorb.runner.masks import LabelFolder, MaskFolder
+from dynaorb.segmentation.labels import PASCAL_VOC_MOVABLE
 
 log = logging.getLogger(__name__)
 
@@ -91,6 +92,11 @@ class RunOptions:
     save_map: str | None = None     # the map written here after the run
     load_map: str | None = None     # start from this saved map (needs a vocabulary)
     localization: bool = False      # localisation only: no new keyframes or map points
+    # A provider object to run instead of opening kind/path (e.g. a
+    # dynaorb.ros.bag.BagProvider); frames that carry `labels` (class ids)
+    # get the mask of movable_ids when no other mask source is given.
+    provider: object | None = None
+    movable_ids: tuple = PASCAL_VOC_MOVABLE
 
 
 # Stages of the tracking thread (summed into "frame_total"; "dynamic" is the
@@ -238,8 +244,26 @@ def run_dataset(opts: RunOptions) -> dict:
             semantic.close()
 
 
+def _track(_core, system, frame, mask, labels):
+    """A frame of a C++ provider goes in as it is; others (bag frames) by their images."""
+    if isinstance(frame, _core.Frame):
+        return system.track_frame(frame, mask, labels)
+    if system.sensor == "mono":
+        return system.track_mono(frame.image, frame.stamp, mask, labels)
+    if system.sensor == "stereo":
+        return system.track_stereo(frame.image, frame.right, frame.stamp, mask, labels)
+    return system.track_rgbd(frame.image, frame.depth, frame.stamp, mask, labels)
+
+
+def _label_mask(labels, movable: np.ndarray):
+    """255 on the movable ids of a label image (what the runner does with a segmenter's labels)."""
+    if labels is None:
+        return None
+    return np.where(movable[labels], np.uint8(255), np.uint8(0))
+
+
 def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
-    provider = _core.open_dataset(opts.kind, opts.path, opts.sensor)
+    provider = opts.provider if opts.provider is not None else _core.open_dataset(opts.kind, opts.path, opts.sensor)
     for w in provider.warnings:
         log.warning("%s: %s", opts.path, w)
     settings = _settings(provider, opts.config)
@@ -274,6 +298,9 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
     if opts.localization:
         system.set_localization_mode(True)
     masks = MaskFolder(opts.masks) if opts.masks else None
+    movable = np.zeros(65536, bool)
+    movable[list(opts.movable_ids)] = True
+    frames_with_labels = 0
     out = pathlib.Path(opts.out)
     out.mkdir(parents=True, exist_ok=True)
     save_masks = pathlib.Path(opts.save_masks) if opts.save_masks else None
@@ -299,7 +326,14 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
                 labels = seg.labels  # the filter decides what of the movable classes to drop
             else:
                 mask = segmenter.movable_mask(seg.labels) if seg.labels is not None else None
-        result = system.track_frame(frame, mask, labels)
+        elif labels is None and masks is None and getattr(frame, "labels", None) is not None:
+            # Labels carried by the frame (a bag's label topic).
+            frames_with_labels += 1
+            if dynamic_on:
+                labels = frame.labels
+            else:
+                mask = _label_mask(frame.labels, movable)
+        result = _track(_core, system, frame, mask, labels)
         if result.rejected != "none":
             log.warning("frame %d (%s) rejected: %s", i, frame.image_path, result.message)
         states[result.state] += 1
@@ -374,6 +408,7 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
         "wall_s": wall,
         "fps": len(per_frame_ms) / wall if wall > 0 else None,
         "masks": dict(masks.counts) if masks else None,
+        "frames_with_labels": frames_with_labels,
         "masks_dropped_by_core": int(counters["masks_dropped"]),
     }
     if semantic is not None:

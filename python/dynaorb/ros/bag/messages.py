@@ -1,0 +1,147 @@
+"""sensor_msgs/Image and CameraInfo as rosbags dataclasses, to and from numpy.
+
+Topic names and encodings follow what users' bags carry: TUM's own bags
+(/camera/rgb/image_color rgb8, /camera/depth/image 32FC1 metres with NaN
+where there is no depth), the ZED / stereo_image_proc style left/right
+rectified images for KITTI, and EuRoC's /cam0/image_raw, /cam1/image_raw.
+"""
+from __future__ import annotations
+
+import dataclasses
+import struct
+
+import cv2
+import numpy as np
+from rosbags.typesys import Stores, get_typestore
+
+TYPESTORE = get_typestore(Stores.ROS1_NOETIC)
+IMAGE = "sensor_msgs/msg/Image"
+CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
+
+_Header = TYPESTORE.types["std_msgs/msg/Header"]
+_Time = TYPESTORE.types["builtin_interfaces/msg/Time"]
+_Image = TYPESTORE.types[IMAGE]
+_CameraInfo = TYPESTORE.types[CAMERA_INFO]
+_Roi = TYPESTORE.types["sensor_msgs/msg/RegionOfInterest"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Topics:
+    """Where a sequence's streams go in a bag (None: not written / not read)."""
+    image: str                      # mono image, left image, or colour image
+    right: str | None = None        # stereo
+    depth: str | None = None        # RGB-D
+    labels: str | None = None       # class-id images (mono8), same stamps as `image`
+    image_info: str | None = None   # camera_info beside image / right
+    right_info: str | None = None
+    depth_info: str | None = None
+    frame_id: str = "camera_optical_frame"
+    right_frame_id: str | None = None
+
+
+# Defaults per dataset layout and sensor. The labels topic is where
+# segmentation_server publishes beside the image (launch/segmentation_server.launch).
+TUM_TOPICS = Topics(image="/camera/rgb/image_color", depth="/camera/depth/image", labels="/camera/rgb/labels",
+                    image_info="/camera/rgb/camera_info", depth_info="/camera/depth/camera_info",
+                    frame_id="camera_rgb_optical_frame")
+STEREO_TOPICS = Topics(image="/camera/left/image_rect", right="/camera/right/image_rect",
+                       labels="/camera/left/labels", image_info="/camera/left/camera_info",
+                       right_info="/camera/right/camera_info", frame_id="camera_left_optical_frame",
+                       right_frame_id="camera_right_optical_frame")
+EUROC_TOPICS = Topics(image="/cam0/image_raw", right="/cam1/image_raw", labels="/cam0/labels",
+                      frame_id="cam0", right_frame_id="cam1")
+
+
+def stamp_ns(stamp: float) -> int:
+    return int(round(stamp * 1e9))
+
+
+def header(stamp: float, frame_id: str, seq: int = 0):
+    ns = stamp_ns(stamp)
+    return _Header(seq=seq, stamp=_Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000), frame_id=frame_id)
+
+
+def image_msg(array: np.ndarray, encoding: str, stamp: float, frame_id: str, seq: int = 0):
+    """An Image message of a contiguous HxW or HxWxC array in `encoding`."""
+    array = np.ascontiguousarray(array)
+    channels = 1 if array.ndim == 2 else array.shape[2]
+    step = array.shape[1] * channels * array.dtype.itemsize
+    data = np.frombuffer(array.tobytes(), dtype=np.uint8)
+    return _Image(header=header(stamp, frame_id, seq), height=array.shape[0], width=array.shape[1],
+                  encoding=encoding, is_bigendian=0, step=step, data=data)
+
+
+def camera_info_msg(stamp: float, frame_id: str, width: int, height: int, K: np.ndarray, D: np.ndarray,
+                    P: np.ndarray, seq: int = 0):
+    return _CameraInfo(header=header(stamp, frame_id, seq), height=height, width=width,
+                       distortion_model="plumb_bob", D=np.asarray(D, dtype=float).ravel(),
+                       K=np.asarray(K, dtype=float).ravel(), R=np.eye(3).ravel(),
+                       P=np.asarray(P, dtype=float).ravel(), binning_x=0, binning_y=0,
+                       roi=_Roi(x_offset=0, y_offset=0, height=0, width=0, do_rectify=False))
+
+
+def serialize(msg) -> bytes:
+    return TYPESTORE.serialize_ros1(msg, msg.__msgtype__)
+
+
+def deserialize(raw: bytes, msgtype: str):
+    return TYPESTORE.deserialize_ros1(raw, msgtype)
+
+
+def header_stamp(raw: bytes) -> float:
+    """The header stamp of a serialised message that starts with a std_msgs/Header
+    (seq, sec, nsec), read without deserialising the rest."""
+    _, sec, nsec = struct.unpack_from("<III", raw, 0)
+    return sec + nsec * 1e-9
+
+
+_DTYPES = {"mono8": (np.uint8, 1), "8UC1": (np.uint8, 1), "rgb8": (np.uint8, 3), "bgr8": (np.uint8, 3),
+           "rgba8": (np.uint8, 4), "bgra8": (np.uint8, 4), "mono16": (np.uint16, 1), "16UC1": (np.uint16, 1),
+           "32FC1": (np.float32, 1)}
+
+
+def image_array(msg) -> np.ndarray:
+    """HxW / HxWxC array of an Image message (ValueError for an unknown encoding or a bad size)."""
+    if msg.encoding not in _DTYPES:
+        raise ValueError(f"image encoding {msg.encoding!r} is not one of {', '.join(_DTYPES)}")
+    base, channels = _DTYPES[msg.encoding]
+    base = np.dtype(base)  # native order: the core's bindings take only the canonical dtypes
+    row = msg.width * channels * base.itemsize
+    if msg.step < row or len(msg.data) < msg.step * msg.height:
+        raise ValueError(f"{msg.width}x{msg.height} {msg.encoding} image with step {msg.step} "
+                         f"and {len(msg.data)} bytes is truncated")
+    rows = np.frombuffer(bytes(msg.data), dtype=np.uint8)[:msg.step * msg.height].reshape(msg.height, msg.step)
+    packed = rows[:, :row].copy()
+    if msg.is_bigendian and base.itemsize > 1:
+        out = packed.view(base.newbyteorder(">")).astype(base)
+    else:
+        out = packed.view(base)
+    return out.reshape((msg.height, msg.width) + ((channels,) if channels > 1 else ()))
+
+
+def image_for_tracking(msg, rgb_order: bool) -> np.ndarray:
+    """What the System takes (the node's rule): 8-bit grey stays grey, colour
+    becomes RGB (rgb_order, Camera.RGB: 1) or BGR, 16-bit grey is scaled to 8 bits."""
+    a = image_array(msg)
+    e = msg.encoding
+    if e in ("mono8", "8UC1"):
+        return a
+    if e in ("mono16", "16UC1"):
+        return (a // 256).astype(np.uint8)
+    if e == "32FC1":
+        raise ValueError("a 32FC1 image is not an intensity image")
+    code = {("rgb8", True): None, ("rgb8", False): cv2.COLOR_RGB2BGR,
+            ("bgr8", True): cv2.COLOR_BGR2RGB, ("bgr8", False): None,
+            ("rgba8", True): cv2.COLOR_RGBA2RGB, ("rgba8", False): cv2.COLOR_RGBA2BGR,
+            ("bgra8", True): cv2.COLOR_BGRA2RGB, ("bgra8", False): cv2.COLOR_BGRA2BGR}[(e, rgb_order)]
+    return a if code is None else cv2.cvtColor(a, code)
+
+
+def depth_in_metres(msg, depth_map_factor: float) -> np.ndarray:
+    """32FC1 is metres (REP-118); 16UC1 / mono16 is divided by DepthMapFactor."""
+    a = image_array(msg)
+    if msg.encoding == "32FC1":
+        return a
+    if msg.encoding in ("16UC1", "mono16"):
+        return a.astype(np.float32) / np.float32(depth_map_factor)
+    raise ValueError(f"depth encoding {msg.encoding!r} is neither 16UC1 nor 32FC1")

@@ -1,0 +1,266 @@
+"""A ROS 1 bag as a dataset provider: frames in stamp order, none dropped.
+
+The bag is indexed once (header stamps read from the first bytes of each
+message), images are paired (stereo: the same stamp; RGB-D: the nearest depth
+within max_diff, each used once, as TUM's associate.py), and frames are then
+read serially: load(i) advances one pass through the bag, keeping only the
+messages later frames need. The provider has the interface of the C++
+DataProvider the runner uses (len, load, stamp, default_settings,
+ground_truth, sensor, warnings), so `dynaorb bag run` goes through the same
+runner and core as `dynaorb run`.
+"""
+from __future__ import annotations
+
+import bisect
+import collections
+import dataclasses
+import pathlib
+
+import numpy as np
+from rosbags.rosbag1 import Reader
+
+from dynaorb import core
+from dynaorb.ros.bag import messages as m
+from dynaorb.ros.bag.write import sidecar
+
+ROLES = ("image", "right", "depth", "labels")
+_LAYOUTS = (m.TUM_TOPICS, m.STEREO_TOPICS, m.EUROC_TOPICS)
+_SAME_STAMP = 1e-6  # s: "the same stamp" for stereo pairs and labels
+
+
+@dataclasses.dataclass
+class BagFrame:
+    index: int
+    stamp: float
+    image: np.ndarray
+    right: np.ndarray | None = None
+    depth: np.ndarray | None = None   # in the System's units (DepthMapFactor): uint16 as stored, or float32
+    labels: np.ndarray | None = None  # class ids, when the bag carries them
+    image_path: str = ""              # "topic@stamp", for messages
+
+
+def _ns(stamp: float) -> int:
+    return int(round(stamp * 1e9))
+
+
+class BagProvider:
+    kind = "bag"
+
+    def __init__(self, path: str | pathlib.Path, *, settings=None, sensor: str | None = None,
+                 topics: dict | None = None, max_diff: float = 0.02, ground_truth: str | None = None,
+                 use_labels: bool = True):
+        """settings: a Settings object or YAML path (default: BAG-stem.settings.yaml);
+        topics: role -> topic overrides (image, right, depth, labels);
+        ground_truth: a TUM file (default: BAG-stem.groundtruth.tum when present)."""
+        _core = core()
+        self.path = pathlib.Path(path)
+        if not self.path.is_file():
+            raise FileNotFoundError(f"{self.path}: bag does not exist")
+        self.warnings: list[str] = []
+        self._settings = self._load_settings(settings)
+        self._ground_truth_file = pathlib.Path(ground_truth) if ground_truth else sidecar(self.path, "groundtruth.tum")
+        if ground_truth and not self._ground_truth_file.is_file():
+            raise FileNotFoundError(f"{ground_truth}: ground truth file does not exist")
+        with Reader(self.path) as reader:
+            available = {c.topic: c.msgtype for c in reader.connections}
+        self.topics = self._choose_topics(available, topics or {}, sensor, use_labels)
+        self.sensor = sensor or ("rgbd" if self.topics.get("depth") else "stereo" if self.topics.get("right")
+                                 else "mono")
+        self.sensor = _core.parse_sensor(self.sensor)
+        need = {"mono": ("image",), "stereo": ("image", "right"), "rgbd": ("image", "depth")}[self.sensor]
+        missing = [r for r in need if not self.topics.get(r)]
+        if missing:
+            raise ValueError(f"{self.path}: no {' / '.join(missing)} topic for a {self.sensor} run (topics in the "
+                             f"bag: {', '.join(sorted(available)) or 'none'}; give them with --topic ROLE=TOPIC)")
+        for role in ROLES:
+            if role not in need and role != "labels":
+                self.topics.pop(role, None)
+        self.max_diff = max_diff
+        self._index()
+        self._reader = None
+        self._messages = None
+        self._next = 0
+
+    # ------------------------------------------------------------- set-up
+    def _load_settings(self, settings):
+        _core = core()
+        if settings is None:
+            default = sidecar(self.path, "settings.yaml")
+            if not default.is_file():
+                raise ValueError(f"{self.path}: no settings (give --config, or keep {default.name} beside the bag)")
+            settings = str(default)
+        if isinstance(settings, (str, pathlib.Path)):
+            return _core.Settings.load(str(settings))
+        return settings
+
+    def _choose_topics(self, available: dict, overrides: dict, sensor: str | None, use_labels: bool) -> dict:
+        unknown = set(overrides) - set(ROLES)
+        if unknown:
+            raise ValueError(f"unknown topic roles {sorted(unknown)} (roles: {', '.join(ROLES)})")
+        chosen = {}
+        # The first known layout whose main image topic is in the bag.
+        for layout in _LAYOUTS:
+            if layout.image in available:
+                for role in ROLES:
+                    topic = getattr(layout, role)
+                    if topic in available:
+                        chosen[role] = topic
+                break
+        chosen.update({r: t for r, t in overrides.items() if t})
+        for role, topic in chosen.items():
+            if topic not in available:
+                raise ValueError(f"{self.path}: topic {topic} ({role}) is not in the bag "
+                                 f"(topics: {', '.join(sorted(available))})")
+            if available[topic] != m.IMAGE:
+                raise ValueError(f"{self.path}: topic {topic} carries {available[topic]}, not {m.IMAGE}")
+        if not use_labels:
+            chosen.pop("labels", None)
+        if "image" not in chosen:
+            raise ValueError(f"{self.path}: no image topic found (topics: {', '.join(sorted(available))}; "
+                             f"give one with --topic image=TOPIC)")
+        return chosen
+
+    def _index(self) -> None:
+        stamps = collections.defaultdict(list)
+        topic_of = {t: r for r, t in self.topics.items()}
+        with Reader(self.path) as reader:
+            conns = [c for c in reader.connections if c.topic in topic_of]
+            for conn, _, raw in reader.messages(connections=conns):
+                stamps[topic_of[conn.topic]].append(m.header_stamp(raw))
+        main = sorted(set(stamps["image"]))
+        if len(main) < len(stamps["image"]):
+            self.warnings.append(f"{len(stamps['image']) - len(main)} image messages with a repeated stamp ignored")
+        partners = {}
+        if self.sensor == "stereo":
+            partners["right"] = self._pair(main, stamps["right"], _SAME_STAMP)
+        elif self.sensor == "rgbd":
+            partners["depth"] = self._pair(main, stamps["depth"], self.max_diff)
+        labels = self._pair(main, stamps["labels"], _SAME_STAMP) if "labels" in self.topics else {}
+        frames = []
+        for s in main:
+            parts = {"image": s}
+            if any(s not in p for p in partners.values()):
+                continue
+            for role, p in partners.items():
+                parts[role] = p[s]
+            if s in labels:
+                parts["labels"] = labels[s]
+            frames.append((s, parts))
+        dropped = len(main) - len(frames)
+        if dropped:
+            self.warnings.append(f"{dropped} images without a {'right image' if self.sensor == 'stereo' else 'depth'}"
+                                 f" {'of the same stamp' if self.sensor == 'stereo' else f'within {self.max_diff} s'}"
+                                 f" skipped")
+        if "labels" in self.topics and len(labels) < len(frames):
+            self.warnings.append(f"{len(frames) - len(labels)} frames without labels of their stamp")
+        self._frames = frames
+        # (role, stamp ns) -> frame index, for the messages the frames need.
+        self._wanted = {}
+        for i, (_, parts) in enumerate(frames):
+            for role, s in parts.items():
+                self._wanted.setdefault((role, _ns(s)), i)
+
+    @staticmethod
+    def _pair(main: list, other: list, max_diff: float) -> dict:
+        """main stamp -> other stamp, nearest within max_diff, each used once (greedy by difference)."""
+        other = sorted(set(other))
+        candidates = []
+        for s in main:
+            k = bisect.bisect_left(other, s)
+            for j in (k - 1, k):
+                if 0 <= j < len(other) and abs(other[j] - s) <= max_diff:
+                    candidates.append((abs(other[j] - s), s, other[j]))
+        candidates.sort()
+        out, used = {}, set()
+        for _, s, o in candidates:
+            if s not in out and o not in used:
+                out[s] = o
+                used.add(o)
+        return out
+
+    # ------------------------------------------------------------- provider interface
+    def __len__(self) -> int:
+        return len(self._frames)
+
+    @property
+    def root(self) -> str:
+        return str(self.path)
+
+    def stamp(self, i: int) -> float:
+        return self._frames[i][0]
+
+    def default_settings(self):
+        return self._settings
+
+    def ground_truth(self):
+        if not self._ground_truth_file.is_file():
+            return np.zeros(0), np.zeros((0, 4, 4))
+        return core().read_tum(str(self._ground_truth_file))
+
+    def load(self, i: int) -> BagFrame:
+        """Frame i. Serial: loading frames in order reads the bag once; going
+        back starts the pass again. InputError for a message it cannot read."""
+        _core = core()
+        if i < 0 or i >= len(self._frames):
+            raise IndexError(i)
+        if self._messages is None or i < self._next:
+            self._restart()
+        stamp, parts = self._frames[i]
+        keys = {role: (role, _ns(s)) for role, s in parts.items()}
+        while any(k not in self._buffer for k in keys.values()):
+            try:
+                conn, _, raw = next(self._messages)
+            except StopIteration:
+                raise _core.InputError(f"{self.path}: the bag ended before frame {i}'s messages") from None
+            key = (self._role_of[conn.topic], _ns(m.header_stamp(raw)))
+            if self._wanted.get(key, -1) >= i:
+                self._buffer[key] = raw
+        msgs = {role: m.deserialize(self._buffer.pop(k), m.IMAGE) for role, k in keys.items()}
+        self._next = i + 1
+        if len(self._buffer) > 64:  # messages of frames already passed are never needed again
+            self._buffer = {k: v for k, v in self._buffer.items() if self._wanted.get(k, -1) > i}
+        return self._convert(i, stamp, msgs)
+
+    def _restart(self) -> None:
+        self.close()
+        self._reader = Reader(self.path)
+        self._reader.open()
+        self._role_of = {t: r for r, t in self.topics.items()}
+        conns = [c for c in self._reader.connections if c.topic in self._role_of]
+        self._messages = self._reader.messages(connections=conns)
+        self._buffer = {}
+        self._next = 0
+
+    def _convert(self, i: int, stamp: float, msgs: dict) -> BagFrame:
+        _core = core()
+        s = self._settings
+        where = f"{self.topics['image']}@{stamp:.6f}"
+        try:
+            frame = BagFrame(index=i, stamp=stamp, image=m.image_for_tracking(msgs["image"], s.rgb), image_path=where)
+            if "right" in msgs:
+                frame.right = m.image_for_tracking(msgs["right"], s.rgb)
+            if "depth" in msgs:
+                depth = msgs["depth"]
+                if depth.encoding in ("16UC1", "mono16"):
+                    frame.depth = m.image_array(depth)  # as stored: the System divides by DepthMapFactor
+                else:
+                    # Metres: the System divides depth by DepthMapFactor whatever its type (the node's rule).
+                    factor = np.float32(s.depth_map_factor or 1.0)
+                    frame.depth = m.depth_in_metres(depth, float(factor)) * factor
+            if "labels" in msgs:
+                frame.labels = m.image_array(msgs["labels"])
+        except ValueError as exc:
+            raise _core.InputError(f"{where}: {exc}") from None
+        return frame
+
+    def close(self) -> None:
+        if self._reader is not None:
+            self._reader.close()
+        self._reader = None
+        self._messages = None
+
+    def __del__(self):
+        try:
+            self.close()
+        except Exception:  # interpreter shutdown
+            pass

@@ -1,0 +1,222 @@
+#include "node_config.h"
+
+#include <cstdlib>
+#include <sstream>
+
+#include "dynaorb/io/errors.h"
+
+namespace dynaorb::node {
+
+namespace {
+
+// python/dynaorb/vocab/default.py: FILE_NAME (test/python/test_ros_node_sources.py keeps them equal).
+constexpr const char* kDefaultVocabularyFile = "dynaorb_default_v1_k10_L6.bin";
+
+// PASCAL VOC's movable classes (python/dynaorb/segmentation/labels.py, DynaSLAM's and STDyn-SLAM's set).
+const std::vector<int> kPascalVocMovable = {1, 2, 3, 4, 6, 7, 8, 10, 12, 13, 14, 15, 17, 19};
+
+void override_number(const ros::NodeHandle& pnh, const std::string& key, double& value) {
+  double v;
+  if (pnh.getParam(key, v)) value = v;
+}
+void override_number(const ros::NodeHandle& pnh, const std::string& key, int& value) {
+  int v;
+  if (pnh.getParam(key, v)) value = v;
+}
+void override_optional(const ros::NodeHandle& pnh, const std::string& key, std::optional<double>& value) {
+  double v;
+  if (pnh.getParam(key, v)) value = v;
+}
+
+// The YAML's keys as parameters: "Camera.fx" -> ~Camera/fx.
+void override_settings(const ros::NodeHandle& pnh, Settings& s) {
+  CameraSettings& c = s.camera;
+  override_number(pnh, "Camera/fx", c.fx);
+  override_number(pnh, "Camera/fy", c.fy);
+  override_number(pnh, "Camera/cx", c.cx);
+  override_number(pnh, "Camera/cy", c.cy);
+  const char* dist_keys[] = {"Camera/k1", "Camera/k2", "Camera/p1", "Camera/p2", "Camera/k3"};
+  for (int i = 0; i < 5; ++i) {
+    double v;
+    if (!pnh.getParam(dist_keys[i], v)) continue;
+    if (c.dist.cols <= i) {
+      cv::Mat grown = cv::Mat::zeros(1, i + 1, CV_64F);
+      c.dist.copyTo(grown.colRange(0, c.dist.cols));
+      c.dist = grown;
+    }
+    c.dist.at<double>(i) = v;
+  }
+  override_number(pnh, "Camera/width", c.width);
+  override_number(pnh, "Camera/height", c.height);
+  override_number(pnh, "Camera/fps", c.fps);
+  int rgb;
+  if (pnh.getParam("Camera/RGB", rgb)) c.rgb = rgb != 0;
+  override_optional(pnh, "Camera/bf", c.bf);
+  override_optional(pnh, "ThDepth", c.th_depth);
+  override_optional(pnh, "DepthMapFactor", c.depth_map_factor);
+  ExtractorSettings& e = s.extractor;
+  override_number(pnh, "ORBextractor/nFeatures", e.n_features);
+  override_number(pnh, "ORBextractor/scaleFactor", e.scale_factor);
+  override_number(pnh, "ORBextractor/nLevels", e.n_levels);
+  override_number(pnh, "ORBextractor/iniThFAST", e.ini_th_fast);
+  override_number(pnh, "ORBextractor/minThFAST", e.min_th_fast);
+}
+
+template <typename T>
+T param(const ros::NodeHandle& pnh, const std::string& name, const T& fallback) {
+  T v;
+  return pnh.getParam(name, v) ? v : fallback;
+}
+
+std::vector<double> triple(const ros::NodeHandle& pnh, const std::string& name, const std::vector<double>& fallback) {
+  std::vector<double> v;
+  if (!pnh.getParam(name, v)) return fallback;
+  if (v.size() != 3) throw InputError("~" + name + " must hold 3 numbers");
+  return v;
+}
+
+std::string env_or(const char* name, const std::string& fallback) {
+  const char* v = std::getenv(name);
+  return v && *v ? std::string(v) : fallback;
+}
+
+}  // namespace
+
+std::string default_vocabulary_path() {
+  std::string dir = env_or("DYNAORB_VOCAB_CACHE", "");
+  if (dir.empty()) {
+    const std::string base = env_or("XDG_CACHE_HOME", env_or("HOME", ".") + "/.cache");
+    dir = base + "/dynaorb/vocab";
+  }
+  return dir + "/" + kDefaultVocabularyFile;
+}
+
+NodeConfig read_config(const ros::NodeHandle& pnh) {
+  NodeConfig cfg;
+  NodeOptions& n = cfg.node;
+  n.sensor = parse_sensor(param<std::string>(pnh, "sensor", "rgbd"));
+
+  const std::string settings_path = param<std::string>(pnh, "settings", "");
+  if (!settings_path.empty()) cfg.settings = Settings::load(settings_path);
+  override_settings(pnh, cfg.settings);
+  n.use_camera_info = param(pnh, "use_camera_info", false);
+  // With camera_info the intrinsics come later; the rest must be valid now.
+  if (!n.use_camera_info) cfg.settings.validate(n.sensor);
+
+  // System options.
+  cfg.system.synchronous_mapping = param(pnh, "synchronous_mapping", false);
+  cfg.system.loop_closing = param(pnh, "loop_closing", true);
+  cfg.system.localization_only = param(pnh, "localization_only", false);
+  cfg.system.mapping.ba_threads = param(pnh, "ba_threads", cfg.system.mapping.ba_threads);
+  cfg.dynamic = param<std::string>(pnh, "dynamic", "off");
+  // Only "off" exists until the dynamic-object front end lands (hook: SystemOptions::dynamic).
+  if (cfg.dynamic != "off")
+    throw InputError("~dynamic: unknown preset '" + cfg.dynamic + "' (available: off)");
+  std::string vocabulary = param<std::string>(pnh, "vocabulary", "default");
+  if (vocabulary == "none") vocabulary.clear();
+  cfg.vocabulary_path = vocabulary == "default" ? default_vocabulary_path() : vocabulary;
+
+  // Frames and TF.
+  n.map_frame = param<std::string>(pnh, "map_frame", n.map_frame);
+  n.odom_frame = param<std::string>(pnh, "odom_frame", n.odom_frame);
+  n.base_frame = param<std::string>(pnh, "base_frame", n.base_frame);
+  n.camera_frame = param<std::string>(pnh, "camera_frame", n.camera_frame);
+  n.publish_tf = param(pnh, "publish_tf", n.publish_tf);
+  n.external_odometry = param(pnh, "external_odometry", n.external_odometry);
+  n.publish_camera_tf = param(pnh, "publish_camera_tf", n.publish_camera_tf);
+  n.camera_xyz = triple(pnh, "camera_xyz", n.camera_xyz);
+  n.camera_rpy = triple(pnh, "camera_rpy", n.camera_rpy);
+  n.tf_timeout = param(pnh, "tf_timeout", n.tf_timeout);
+  if (n.map_frame.empty() || n.odom_frame.empty() || n.base_frame.empty())
+    throw InputError("~map_frame, ~odom_frame and ~base_frame must not be empty");
+
+  // Inputs.
+  n.approximate_sync = param(pnh, "approximate_sync", n.approximate_sync);
+  n.sync_max_interval = param(pnh, "sync_max_interval", n.sync_max_interval);
+  n.queue_size = param(pnh, "queue_size", n.queue_size);
+  if (n.queue_size < 1) throw InputError("~queue_size must be >= 1");
+  n.rectify = param(pnh, "rectify", n.sensor == Sensor::kStereo && cfg.settings.rectification.enabled());
+  if (n.rectify && (n.sensor != Sensor::kStereo || !cfg.settings.rectification.enabled()))
+    throw InputError("~rectify needs a stereo sensor and LEFT./RIGHT. blocks in the settings");
+  if (n.rectify && n.use_camera_info)
+    throw InputError("~use_camera_info is for rectified images: with ~rectify the YAML's LEFT./RIGHT. blocks hold the calibration");
+  n.use_labels = param(pnh, "use_labels", n.use_labels);
+  n.wait_for_labels = param(pnh, "wait_for_labels", n.wait_for_labels);
+  n.max_frames_waiting = param(pnh, "max_frames_waiting", n.max_frames_waiting);
+  n.label_wait_timeout = param(pnh, "label_wait_timeout", n.label_wait_timeout);
+  n.max_label_age = param(pnh, "max_label_age", n.max_label_age);
+  n.movable_ids_given = pnh.getParam("movable_ids", n.movable_ids);
+  if (!n.movable_ids_given) n.movable_ids = kPascalVocMovable;
+  n.movable_ids_from = param<std::string>(pnh, "movable_ids_from", n.movable_ids_from);
+
+  // Dense cloud.
+  n.publish_cloud = param(pnh, "publish_cloud", n.publish_cloud);
+  n.publish_unfiltered_cloud = param(pnh, "publish_unfiltered_cloud", n.publish_unfiltered_cloud);
+  n.inpaint = param(pnh, "cloud/inpaint", n.inpaint);
+  n.cloud.max_depth = param(pnh, "cloud/max_depth", n.cloud.max_depth);
+  n.cloud.min_depth = param(pnh, "cloud/min_depth", n.cloud.min_depth);
+  n.cloud.stride = param(pnh, "cloud/stride", n.cloud.stride);
+  if (!(n.cloud.max_depth > n.cloud.min_depth) || n.cloud.stride < 1)
+    throw InputError("~cloud/max_depth must exceed ~cloud/min_depth and ~cloud/stride be >= 1");
+  n.sgbm.num_disparities = param(pnh, "sgbm/num_disparities", n.sgbm.num_disparities);
+  n.sgbm.block_size = param(pnh, "sgbm/block_size", n.sgbm.block_size);
+  n.sgbm.uniqueness_ratio = param(pnh, "sgbm/uniqueness_ratio", n.sgbm.uniqueness_ratio);
+  n.sgbm.speckle_window = param(pnh, "sgbm/speckle_window", n.sgbm.speckle_window);
+  n.sgbm.speckle_range = param(pnh, "sgbm/speckle_range", n.sgbm.speckle_range);
+  return cfg;
+}
+
+void apply_camera_info(Settings& s, Sensor sensor, const sensor_msgs::CameraInfo& left,
+                       const sensor_msgs::CameraInfo* right) {
+  if (left.width == 0 || left.height == 0) throw InputError("camera_info: width and height must be set");
+  CameraSettings& c = s.camera;
+  if (sensor == Sensor::kStereo) {
+    // Rectified images: the projection matrix holds their intrinsics.
+    if (left.P[0] <= 0.0 || left.P[5] <= 0.0) throw InputError("camera_info: P has no focal length");
+    c.fx = left.P[0];
+    c.fy = left.P[5];
+    c.cx = left.P[2];
+    c.cy = left.P[6];
+    c.dist = cv::Mat::zeros(1, 4, CV_64F);
+    if (right) {
+      const double bf = -right->P[3];
+      if (!(bf > 0.0)) throw InputError("right camera_info: P[3] must be -fx * baseline < 0");
+      c.bf = bf;
+    }
+  } else {
+    if (left.K[0] <= 0.0 || left.K[4] <= 0.0) throw InputError("camera_info: K has no focal length");
+    c.fx = left.K[0];
+    c.fy = left.K[4];
+    c.cx = left.K[2];
+    c.cy = left.K[5];
+    const bool radtan = left.distortion_model.empty() || left.distortion_model == "plumb_bob" ||
+                        left.distortion_model == "rational_polynomial";
+    if (!radtan) throw InputError("camera_info: distortion model '" + left.distortion_model + "' is not plumb_bob");
+    const int n = static_cast<int>(std::min<std::size_t>(left.D.size(), 5));
+    c.dist = cv::Mat::zeros(1, std::max(n, 4), CV_64F);
+    for (int i = 0; i < n; ++i) c.dist.at<double>(i) = left.D[i];
+  }
+  c.width = static_cast<int>(left.width);
+  c.height = static_cast<int>(left.height);
+  s.validate(sensor);
+}
+
+std::string describe(const NodeConfig& cfg) {
+  const NodeOptions& n = cfg.node;
+  std::ostringstream out;
+  out << "sensor " << to_string(n.sensor) << ", settings " << (cfg.settings.source.empty() ? "<params>" : cfg.settings.source)
+      << ", vocabulary " << (cfg.vocabulary_path.empty() ? "none" : cfg.vocabulary_path) << ", dynamic "
+      << cfg.dynamic << ", " << (cfg.system.synchronous_mapping ? "synchronous" : "concurrent") << " mapping, loop closing "
+      << (cfg.system.loop_closing ? "on" : "off") << "; frames " << n.map_frame << " -> " << n.odom_frame << " -> "
+      << n.base_frame << " -> " << (n.camera_frame.empty() ? "<image frame_id>" : n.camera_frame)
+      << (n.external_odometry ? " (odom -> base from TF)" : "") << "; " << (n.approximate_sync ? "approximate" : "exact")
+      << " sync, queue " << n.queue_size << (n.rectify ? ", rectifying raw stereo" : "")
+      << (n.use_camera_info ? ", intrinsics from camera_info" : "")
+      << (n.use_labels ? (n.wait_for_labels ? ", labels (waited for)" : ", labels (newest)") : ", no labels")
+      << "; cloud " << (n.publish_cloud ? "max depth " + std::to_string(n.cloud.max_depth) + " m, stride " +
+                                               std::to_string(n.cloud.stride)
+                                         : "off");
+  return out.str();
+}
+
+}  // namespace dynaorb::node

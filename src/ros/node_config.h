@@ -1,0 +1,88 @@
+#pragma once
+// Parameters of dynaorb_node: the ORB-SLAM2 settings YAML (~settings) with
+// any of its keys overridden by a private parameter of the same name, dots
+// written as slashes (~Camera/fx, ~ThDepth, ~ORBextractor/nFeatures, ...),
+// the System's options (~vocabulary, ~synchronous_mapping, ~loop_closing,
+// ~localization_only, ~dynamic) and the node's own (frames, topics, sync,
+// cloud). Read, validated and printed once at start-up.
+#include <ros/node_handle.h>
+#include <sensor_msgs/CameraInfo.h>
+
+#include <string>
+#include <vector>
+
+#include "dynaorb/system.h"
+#include "support/dense_cloud.h"
+
+namespace dynaorb::node {
+
+struct NodeOptions {
+  Sensor sensor = Sensor::kRGBD;
+  // REP-105 frames. camera_frame "": the image header's frame_id.
+  std::string map_frame = "map", odom_frame = "odom", base_frame = "base_link", camera_frame;
+  bool publish_tf = true;
+  // true: another node publishes odom -> base_link (wheel odometry); this one
+  // looks it up at the image stamp and publishes map -> odom only.
+  bool external_odometry = false;
+  // base_frame -> camera_frame as a static transform (x y z, roll pitch yaw).
+  // The default is the REP-103 body <- optical rotation of a camera looking
+  // along base_link's x axis. false: the robot description publishes it.
+  bool publish_camera_tf = true;
+  std::vector<double> camera_xyz{0.0, 0.0, 0.0};
+  std::vector<double> camera_rpy{-1.5707963267948966, 0.0, -1.5707963267948966};
+  double tf_timeout = 0.2;  // seconds to wait for a transform
+
+  bool approximate_sync = false;  // ApproximateTime instead of ExactTime
+  double sync_max_interval = 0.02;  // s, approximate sync (TUM associates rgb/depth within 0.02 s)
+  int queue_size = 10;            // per subscription and in the synchronizer
+  bool rectify = false;           // stereo: raw images, rectified with the YAML's LEFT./RIGHT. blocks
+  bool use_camera_info = false;   // intrinsics (and bf for stereo) from the first camera_info
+
+  bool use_labels = true;         // subscribe semantic/labels
+  bool wait_for_labels = false;   // each frame waits for labels with its stamp (bags that carry them)
+  int max_frames_waiting = 30;    //   at most this many frames wait; older ones go without labels
+  double label_wait_timeout = 1.0;  //   nor longer than this (wall-clock s): labels that never come
+  double max_label_age = 0.5;     // s: newest labels older than this are not used (live)
+  // Label ids masked: ~movable_ids; without it, those the segmentation server
+  // announces (~movable_ids_from, its ~movable_ids parameter) once labels
+  // arrive, else PASCAL VOC's movable classes.
+  std::vector<int> movable_ids;
+  bool movable_ids_given = false;
+  std::string movable_ids_from = "/segmentation_server/movable_ids";
+
+  bool publish_cloud = true;             // per keyframe, camera frame
+  bool publish_unfiltered_cloud = false; // also cloud_unfiltered: the same without the mask (diagnostics)
+  // Masked pixels filled from earlier keyframes (DDL-SLAM's background
+  // inpainting): comes with System::dense_frame(inpaint); until then the
+  // masked pixels are left out and a warning says so.
+  bool inpaint = false;
+  DenseCloudOptions cloud;
+  StereoDepthOptions sgbm;
+};
+
+struct NodeConfig {
+  Settings settings;
+  SystemOptions system;
+  NodeOptions node;
+  std::string vocabulary_path;  // "" none
+  std::string dynamic = "off";
+};
+
+// Reads the private parameters; throws InputError (or std::invalid_argument)
+// naming the parameter or file that is wrong.
+NodeConfig read_config(const ros::NodeHandle& pnh);
+
+// Overrides the intrinsics from camera_info: K and D for mono / RGB-D
+// (images as the camera gives them), P and no distortion for rectified
+// stereo, and bf = -P_right[3] from the right camera's info. Throws
+// InputError when the message is unusable.
+void apply_camera_info(Settings& settings, Sensor sensor, const sensor_msgs::CameraInfo& left,
+                       const sensor_msgs::CameraInfo* right);
+
+// The default vocabulary file `dynaorb vocab default` caches
+// ($DYNAORB_VOCAB_CACHE, $XDG_CACHE_HOME/dynaorb/vocab or ~/.cache/dynaorb/vocab).
+std::string default_vocabulary_path();
+
+std::string describe(const NodeConfig& config);
+
+}  // namespace dynaorb::node

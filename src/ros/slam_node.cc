@@ -1,0 +1,645 @@
+#include "slam_node.h"
+
+#include <boost/bind/bind.hpp>
+#include <cv_bridge/cv_bridge.h>
+#include <dynaorb/TrackingStatus.h>
+#include <nav_msgs/Odometry.h>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+#include <sensor_msgs/image_encodings.h>
+#include <tf2/LinearMath/Quaternion.h>
+#include <tf2_eigen/tf2_eigen.h>
+
+#include <filesystem>
+#include <sstream>
+
+#include "dynaorb/io/errors.h"
+#include "ros_conversions.h"
+
+namespace dynaorb::node {
+
+namespace {
+
+// Stages of the tracking thread (python/dynaorb/runner: FRAME_STAGES).
+double frame_ms(const TrackResult& r) {
+  double ms = 0.0;
+  for (const char* stage : {"preprocess", "extract", "stereo_matching", "tracking"}) {
+    auto it = r.stage_ms.find(stage);
+    if (it != r.stage_ms.end()) ms += it->second;
+  }
+  return ms;
+}
+
+// Loops and global bundle adjustments move the map under the trajectory.
+long map_corrections(const System& s) {
+  const SystemCounters& c = s.counters();
+  return c.loops_closed + c.global_ba_runs;
+}
+
+geometry_msgs::TransformStamped stamped(const Eigen::Isometry3d& T, const ros::Time& stamp, const std::string& parent,
+                                        const std::string& child) {
+  geometry_msgs::TransformStamped t = tf2::eigenToTransform(T);
+  t.header.stamp = stamp;
+  t.header.frame_id = parent;
+  t.child_frame_id = child;
+  return t;
+}
+
+cv::Mat as_mat3(const cv::Mat& m) {
+  cv::Mat out;
+  m.convertTo(out, CV_64F);
+  return out;
+}
+
+}  // namespace
+
+SlamNode::SlamNode(ros::NodeHandle nh, ros::NodeHandle pnh)
+    : nh_(nh), pnh_(pnh), cfg_(read_config(pnh)), cloud_builder_(cfg_.node.cloud), stereo_depth_(cfg_.node.sgbm) {
+  const NodeOptions& n = cfg_.node;
+  tf_listener_ = std::make_unique<tf2_ros::TransformListener>(tf_buffer_);
+  if (!cfg_.vocabulary_path.empty()) {
+    if (std::filesystem::is_regular_file(cfg_.vocabulary_path)) {
+      vocabulary_ = std::make_shared<const vocab::Vocabulary>(vocab::Vocabulary::load_any(cfg_.vocabulary_path));
+    } else if (cfg_.vocabulary_path == default_vocabulary_path()) {
+      ROS_WARN("dynaorb_node: no default vocabulary at %s (build it with `dynaorb vocab default`): running "
+               "without relocalisation and loop closing",
+               cfg_.vocabulary_path.c_str());
+      cfg_.vocabulary_path.clear();
+    } else {
+      throw InputError(cfg_.vocabulary_path, 0, "~vocabulary: file not found");
+    }
+  }
+  cfg_.system.vocabulary = vocabulary_;
+  if (n.rectify) {
+    const StereoRectification& q = cfg_.settings.rectification;
+    const cv::Size size(q.width, q.height);
+    cv::initUndistortRectifyMap(q.K_l, q.D_l, q.R_l, q.P_l.colRange(0, 3), size, CV_16SC2, rect_l1_, rect_l2_);
+    cv::initUndistortRectifyMap(q.K_r, q.D_r, q.R_r, q.P_r.colRange(0, 3), size, CV_16SC2, rect_r1_, rect_r2_);
+  }
+  if (!n.use_camera_info) ensure_system();
+
+  pub_odom_ = nh_.advertise<nav_msgs::Odometry>("odom", 50);
+  pub_map_points_ = nh_.advertise<sensor_msgs::PointCloud2>("map_points", 1, true);
+  if (n.sensor != Sensor::kMono && n.publish_cloud) {
+    pub_cloud_ = nh_.advertise<sensor_msgs::PointCloud2>("cloud", 10);
+    if (n.publish_unfiltered_cloud) pub_cloud_unfiltered_ = nh_.advertise<sensor_msgs::PointCloud2>("cloud_unfiltered", 10);
+  }
+  pub_mask_ = nh_.advertise<sensor_msgs::Image>("dynamic_mask", 5);
+  pub_status_ = nh_.advertise<dynaorb::TrackingStatus>("tracking_state", 50);
+
+  ros::NodeHandle spnh(pnh_);
+  spnh.setCallbackQueue(&service_queue_);
+  srv_save_ = spnh.advertiseService("save_map", &SlamNode::on_save_map, this);
+  srv_load_ = spnh.advertiseService("load_map", &SlamNode::on_load_map, this);
+  srv_reset_ = spnh.advertiseService("reset", &SlamNode::on_reset, this);
+  srv_localization_ = spnh.advertiseService("set_localization_mode", &SlamNode::on_localization, this);
+  srv_stats_ = spnh.advertiseService("stats", &SlamNode::on_stats, this);
+  service_spinner_ = std::make_unique<ros::AsyncSpinner>(1, &service_queue_);
+  service_spinner_->start();
+
+  subscribe();
+  ROS_INFO("dynaorb_node: %s", describe(cfg_).c_str());
+}
+
+SlamNode::~SlamNode() {
+  if (service_spinner_) service_spinner_->stop();
+}
+
+void SlamNode::subscribe() {
+  const NodeOptions& n = cfg_.node;
+  const int q = n.queue_size;
+  std::string a, b, info_a, info_b;
+  switch (n.sensor) {
+    case Sensor::kMono: a = "image", info_a = "camera_info"; break;
+    case Sensor::kStereo:
+      a = n.rectify ? "left/image_raw" : "left/image_rect";
+      b = n.rectify ? "right/image_raw" : "right/image_rect";
+      info_a = "left/camera_info";
+      info_b = "right/camera_info";
+      break;
+    case Sensor::kRGBD: a = "rgb/image", b = "depth/image", info_a = "rgb/camera_info"; break;
+  }
+  if (n.sensor == Sensor::kMono) {
+    sub_mono_ = nh_.subscribe(a, q, &SlamNode::on_mono, this);
+  } else {
+    using namespace boost::placeholders;
+    sub_a_ = std::make_unique<message_filters::Subscriber<Image>>(nh_, a, q);
+    sub_b_ = std::make_unique<message_filters::Subscriber<Image>>(nh_, b, q);
+    if (n.approximate_sync) {
+      approx_ = std::make_unique<message_filters::Synchronizer<ApproxPolicy>>(ApproxPolicy(q), *sub_a_, *sub_b_);
+      approx_->setMaxIntervalDuration(ros::Duration(n.sync_max_interval));
+      approx_->registerCallback(boost::bind(&SlamNode::on_pair, this, _1, _2));
+    } else {
+      exact_ = std::make_unique<message_filters::Synchronizer<ExactPolicy>>(ExactPolicy(q), *sub_a_, *sub_b_);
+      exact_->registerCallback(boost::bind(&SlamNode::on_pair, this, _1, _2));
+    }
+  }
+  if (n.use_camera_info) {
+    sub_info_left_ = nh_.subscribe<sensor_msgs::CameraInfo>(
+        info_a, 1, boost::bind(&SlamNode::on_camera_info, this, boost::placeholders::_1, false));
+    if (!info_b.empty())
+      sub_info_right_ = nh_.subscribe<sensor_msgs::CameraInfo>(
+          info_b, 1, boost::bind(&SlamNode::on_camera_info, this, boost::placeholders::_1, true));
+  }
+  if (n.use_labels) {
+    sub_labels_ = nh_.subscribe("semantic/labels", std::max(q, 10), &SlamNode::on_labels, this);
+    if (n.wait_for_labels) label_timer_ = nh_.createWallTimer(ros::WallDuration(0.1), &SlamNode::on_label_timer, this);
+  }
+}
+
+// ---------------------------------------------------------------- inputs
+
+void SlamNode::on_mono(const sensor_msgs::ImageConstPtr& msg) {
+  FrameInput f;
+  f.header = msg->header;
+  std::string error;
+  f.image = image_for_tracking(msg, cfg_.settings.camera.rgb, error);
+  if (f.image.empty()) {
+    ++counters_.unreadable;
+    ROS_WARN_THROTTLE(5.0, "dynaorb_node: frame skipped: %s (%ld so far)", error.c_str(), counters_.unreadable.load());
+    return;
+  }
+  offer(std::move(f));
+}
+
+void SlamNode::on_pair(const sensor_msgs::ImageConstPtr& a, const sensor_msgs::ImageConstPtr& b) {
+  FrameInput f;
+  f.header = a->header;
+  std::string error;
+  f.image = image_for_tracking(a, cfg_.settings.camera.rgb, error);
+  if (!f.image.empty()) {
+    if (cfg_.node.sensor == Sensor::kStereo) {
+      f.right = image_for_tracking(b, cfg_.settings.camera.rgb, error);
+    } else {
+      f.depth_m = depth_in_metres(b, cfg_.settings.camera.depth_map_factor.value_or(1.0), error);
+    }
+  }
+  if (f.image.empty() || (f.right.empty() && f.depth_m.empty())) {
+    ++counters_.unreadable;
+    ROS_WARN_THROTTLE(5.0, "dynaorb_node: frame skipped: %s (%ld so far)", error.c_str(), counters_.unreadable.load());
+    return;
+  }
+  offer(std::move(f));
+}
+
+void SlamNode::on_camera_info(const sensor_msgs::CameraInfoConstPtr& info, bool right) {
+  (right ? info_right_ : info_left_) = info;
+  if (system_ || before_info_.empty()) return;
+  try {
+    if (!ensure_system()) return;
+  } catch (const std::exception& e) {
+    ROS_ERROR_THROTTLE(5.0, "dynaorb_node: camera_info unusable: %s", e.what());
+    return;
+  }
+  std::deque<Held> held;
+  held.swap(before_info_);
+  for (const Held& h : held) process(h.frame, h.labels, h.label_age);
+}
+
+void SlamNode::on_labels(const sensor_msgs::ImageConstPtr& msg) {
+  std::string error;
+  cv::Mat labels = label_image(msg, error);
+  if (labels.empty()) {
+    ++counters_.labels_unreadable;
+    ROS_WARN_THROTTLE(5.0, "dynaorb_node: labels skipped: %s", error.c_str());
+    return;
+  }
+  if (counters_.labels_in++ == 0 && !cfg_.node.movable_ids_given && !cfg_.node.movable_ids_from.empty()) {
+    std::vector<int> ids;
+    if (nh_.getParam(cfg_.node.movable_ids_from, ids) && !ids.empty()) {
+      cfg_.node.movable_ids = ids;
+      ROS_INFO("dynaorb_node: masking the %zu movable classes of %s", ids.size(), cfg_.node.movable_ids_from.c_str());
+    }
+  }
+  labels_[msg->header.stamp.toSec()] = labels;
+  while (labels_.size() > 64) labels_.erase(labels_.begin());
+  if (cfg_.node.wait_for_labels) drain_waiting(false);
+}
+
+void SlamNode::on_label_timer(const ros::WallTimerEvent&) { drain_waiting(true); }
+
+void SlamNode::offer(FrameInput frame) {
+  ++counters_.frames_in;
+  const NodeOptions& n = cfg_.node;
+  if (!n.use_labels) {
+    process(frame, cv::Mat(), -1.0);
+    return;
+  }
+  if (n.wait_for_labels) {
+    waiting_.emplace_back(std::move(frame), ros::WallTime::now());
+    drain_waiting(false);
+    return;
+  }
+  // Live: the labels nearest in time, if recent enough (a segmentation
+  // server drops frames it cannot keep up with).
+  const double stamp = frame.header.stamp.toSec();
+  const cv::Mat* best = nullptr;
+  double best_age = 0.0;
+  for (const auto& [s, labels] : labels_) {
+    if (!best || std::abs(stamp - s) < std::abs(best_age)) {
+      best = &labels;
+      best_age = stamp - s;
+    }
+  }
+  if (!best) {
+    ++counters_.labels_missing;
+    process(frame, cv::Mat(), -1.0);
+  } else if (std::abs(best_age) > n.max_label_age) {
+    ++counters_.labels_stale;
+    process(frame, cv::Mat(), -1.0);
+  } else {
+    process(frame, *best, best_age);
+  }
+}
+
+void SlamNode::drain_waiting(bool timed_out) {
+  const NodeOptions& n = cfg_.node;
+  while (!waiting_.empty()) {
+    const FrameInput& f = waiting_.front().first;
+    const double stamp = f.header.stamp.toSec();
+    auto it = labels_.lower_bound(stamp - 1e-6);
+    if (it != labels_.end() && it->first <= stamp + 1e-6) {
+      process(f, it->second, 0.0);
+      waiting_.pop_front();
+      continue;
+    }
+    // Labels arrive in stamp order: newer ones mean this frame's never come.
+    const bool passed = !labels_.empty() && labels_.rbegin()->first > stamp + 1e-6;
+    const bool too_many = static_cast<int>(waiting_.size()) > n.max_frames_waiting;
+    const bool too_long = timed_out && (ros::WallTime::now() - waiting_.front().second).toSec() > n.label_wait_timeout;
+    if (!(passed || too_many || too_long)) break;
+    ++counters_.labels_missing;
+    process(f, cv::Mat(), -1.0);
+    waiting_.pop_front();
+  }
+}
+
+bool SlamNode::ensure_system() {
+  if (system_) return true;
+  Settings settings = cfg_.settings;
+  if (cfg_.node.use_camera_info) {
+    const bool need_right = cfg_.node.sensor == Sensor::kStereo;
+    if (!info_left_ || (need_right && !info_right_)) return false;
+    apply_camera_info(settings, cfg_.node.sensor, *info_left_, need_right ? info_right_.get() : nullptr);
+    cfg_.settings = settings;
+    ROS_INFO("dynaorb_node: intrinsics from camera_info: fx %.3f fy %.3f cx %.3f cy %.3f%s", settings.camera.fx,
+             settings.camera.fy, settings.camera.cx, settings.camera.cy,
+             settings.camera.bf ? (", bf " + std::to_string(*settings.camera.bf)).c_str() : "");
+  }
+  system_ = std::make_unique<System>(settings, cfg_.node.sensor, cfg_.system);
+  return true;
+}
+
+// ---------------------------------------------------------------- hooks
+
+TrackResult SlamNode::track(const FrameInput& f, const cv::Mat& labels, cv::Mat& exclusion) {
+  // Hook: with the dynamic front end, labels go to System::track_*(..., mask, labels).
+  exclusion = labels.empty() ? cv::Mat() : movable_mask(labels, cfg_.node.movable_ids);
+  if (!labels.empty()) ++counters_.labels_used;
+  const double stamp = f.header.stamp.toSec();
+  switch (cfg_.node.sensor) {
+    case Sensor::kMono: return system_->track_mono(f.image, stamp, exclusion);
+    case Sensor::kStereo: return system_->track_stereo(f.image, f.right, stamp, exclusion);
+    case Sensor::kRGBD: {
+      // The System divides depth by DepthMapFactor whatever its type: metres scaled back.
+      cv::Mat depth;
+      f.depth_m.convertTo(depth, CV_32F, cfg_.settings.camera.depth_map_factor.value_or(1.0));
+      return system_->track_rgbd(f.image, depth, stamp, exclusion);
+    }
+  }
+  return {};
+}
+
+cv::Mat SlamNode::dynamic_mask(const FrameInput&, const cv::Mat& exclusion) const {
+  // Hook: System::last_dynamic_mask() once the dynamic front end is in.
+  return exclusion;
+}
+
+bool SlamNode::dense_view(const FrameInput& f, const cv::Mat& exclusion, DenseView& view) {
+  // Hook: System::dense_frame(inpaint) once the dynamic front end is in
+  // (colour, depth incl. SGBM depth for stereo, dynamic mask).
+  if (cfg_.node.inpaint)
+    ROS_WARN_ONCE("dynaorb_node: ~cloud/inpaint needs the dynamic front end's dense frames: the masked pixels "
+                  "are left out of the cloud, not inpainted");
+  const CameraSettings& c = system_->settings().camera;
+  cv::Mat K = (cv::Mat_<double>(3, 3) << c.fx, 0, c.cx, 0, c.fy, c.cy, 0, 0, 1);
+  view.exclude = exclusion.empty() ? cv::Mat() : exclusion;
+  if (cfg_.node.sensor == Sensor::kRGBD) {
+    view.depth_m = f.depth_m;
+    view.colour = f.image;
+    view.K = K;
+    view.dist = c.dist;
+    return true;
+  }
+  if (cfg_.node.sensor != Sensor::kStereo || !c.bf) return false;
+  cv::Mat left = f.image, right = f.right;
+  view.K = K;
+  if (cfg_.node.rectify) {
+    const StereoRectification& q = cfg_.settings.rectification;
+    cv::remap(f.image, left, rect_l1_, rect_l2_, cv::INTER_LINEAR);
+    cv::remap(f.right, right, rect_r1_, rect_r2_, cv::INTER_LINEAR);
+    if (!exclusion.empty()) cv::remap(exclusion, view.exclude, rect_l1_, rect_l2_, cv::INTER_NEAREST);
+    view.K = as_mat3(q.P_l.colRange(0, 3));
+    // Points of the rectified camera into the input camera: x_cam = R_l^T x_rect.
+    const cv::Mat R = as_mat3(q.R_l);
+    for (int r = 0; r < 3; ++r)
+      for (int k = 0; k < 3; ++k) view.R_cam_depth(r, k) = static_cast<float>(R.at<double>(k, r));
+  }
+  view.depth_m = stereo_depth_.depth(left, right, *c.bf);
+  view.colour = left;
+  return !view.depth_m.empty();
+}
+
+// ---------------------------------------------------------------- processing
+
+void SlamNode::process(const FrameInput& f, const cv::Mat& labels, double label_age) {
+  try {
+    if (!ensure_system()) {
+      // Held until the camera_info (which may follow its image) arrives; the oldest dropped beyond the queue.
+      before_info_.push_back({f, labels, label_age});
+      if (static_cast<int>(before_info_.size()) > cfg_.node.queue_size) {
+        before_info_.pop_front();
+        ++counters_.waiting_for_camera_info;
+        ROS_WARN_THROTTLE(5.0, "dynaorb_node: waiting for camera_info (%ld frames dropped)",
+                          counters_.waiting_for_camera_info.load());
+      }
+      return;
+    }
+  } catch (const std::exception& e) {
+    ++counters_.waiting_for_camera_info;
+    ROS_ERROR_THROTTLE(5.0, "dynaorb_node: camera_info unusable: %s", e.what());
+    return;
+  }
+  const bool have_extrinsics = camera_extrinsics(f.header);
+  cv::Mat exclusion;
+  TrackResult r;
+  long corrections = 0;
+  bool restarted = false;
+  {
+    std::lock_guard<std::mutex> lk(system_mutex_);
+    r = track(f, labels, exclusion);
+    corrections = map_corrections(*system_);
+    restarted = map_restarted_;
+  }
+  publish_status(f, r, label_age);
+  if (pub_mask_.getNumSubscribers() > 0) {
+    cv::Mat mask = dynamic_mask(f, exclusion);
+    if (mask.empty()) mask = cv::Mat::zeros(f.image.size(), CV_8UC1);
+    pub_mask_.publish(cv_bridge::CvImage(f.header, sensor_msgs::image_encodings::MONO8, mask).toImageMsg());
+  }
+  const bool ok = r.state == TrackingState::kOk && r.pose.has_value();
+  if (ok && have_extrinsics) {
+    const bool continuous = last_tracked_ && !restarted && corrections == last_corrections_ && r.method != "init" &&
+                            r.method != "relocalization";
+    if (!continuous) chain_.restart();
+    publish_pose(f, *r.pose, r.method);
+    if (r.new_keyframe) publish_keyframe_outputs(f, exclusion);
+  }
+  last_tracked_ = ok;
+  last_corrections_ = corrections;
+}
+
+bool SlamNode::camera_extrinsics(const std_msgs::Header& header) {
+  if (T_base_cam_) return true;
+  const NodeOptions& n = cfg_.node;
+  if (camera_frame_.empty()) {
+    camera_frame_ = !n.camera_frame.empty() ? n.camera_frame : header.frame_id;
+    if (camera_frame_.empty()) {
+      camera_frame_ = "camera_optical_frame";
+      ROS_WARN("dynaorb_node: images carry no frame_id and ~camera_frame is not set: using '%s'",
+               camera_frame_.c_str());
+    }
+  }
+  if (n.publish_camera_tf) {
+    tf2::Quaternion q;
+    q.setRPY(n.camera_rpy[0], n.camera_rpy[1], n.camera_rpy[2]);
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::Quaterniond(q.w(), q.x(), q.y(), q.z()).toRotationMatrix();
+    T.translation() = Eigen::Vector3d(n.camera_xyz[0], n.camera_xyz[1], n.camera_xyz[2]);
+    static_broadcaster_.sendTransform(stamped(T, header.stamp, n.base_frame, camera_frame_));
+    T_base_cam_ = T;
+    return true;
+  }
+  try {
+    T_base_cam_ = tf2::transformToEigen(
+        tf_buffer_.lookupTransform(n.base_frame, camera_frame_, ros::Time(0), ros::Duration(n.tf_timeout)));
+    return true;
+  } catch (const tf2::TransformException& e) {
+    ++counters_.tf_failures;
+    ROS_WARN_THROTTLE(5.0, "dynaorb_node: no transform %s -> %s yet (%s): poses not published", n.base_frame.c_str(),
+                      camera_frame_.c_str(), e.what());
+    return false;
+  }
+}
+
+void SlamNode::publish_pose(const FrameInput& f, const Pose& T_wc, const std::string& method) {
+  const NodeOptions& n = cfg_.node;
+  const Eigen::Isometry3d& B = *T_base_cam_;
+  const Eigen::Isometry3d T_world_base = B * T_wc * B.inverse();  // base pose in the first base frame
+  Eigen::Isometry3d T_map_base;
+  {
+    std::lock_guard<std::mutex> lk(system_mutex_);
+    if (map_restarted_) {
+      // A new map after ~reset: its world is put where the robot was last
+      // seen (a guess: the two maps are not related).
+      T_map_world_ = last_T_map_base_ ? *last_T_map_base_ * T_world_base.inverse() : Eigen::Isometry3d::Identity();
+      map_restarted_ = false;
+    }
+    T_map_base = T_map_world_ * T_world_base;
+  }
+  last_T_map_base_ = T_map_base;
+  const ros::Time& stamp = f.header.stamp;
+  chain_.update(T_map_base, stamp.toSec(), true);
+
+  if (n.publish_tf) {
+    if (n.external_odometry) {
+      try {
+        const Eigen::Isometry3d T_odom_base = tf2::transformToEigen(
+            tf_buffer_.lookupTransform(n.odom_frame, n.base_frame, stamp, ros::Duration(n.tf_timeout)));
+        tf_broadcaster_.sendTransform(stamped(T_map_base * T_odom_base.inverse(), stamp, n.map_frame, n.odom_frame));
+      } catch (const tf2::TransformException& e) {
+        ++counters_.tf_failures;
+        ROS_WARN_THROTTLE(5.0, "dynaorb_node: no odometry %s -> %s at %.3f (%s): map -> odom not published",
+                          n.odom_frame.c_str(), n.base_frame.c_str(), stamp.toSec(), e.what());
+      }
+    } else {
+      tf_broadcaster_.sendTransform({stamped(chain_.T_map_odom(), stamp, n.map_frame, n.odom_frame),
+                                     stamped(chain_.T_odom_base(), stamp, n.odom_frame, n.base_frame)});
+    }
+  }
+  nav_msgs::Odometry odom;
+  odom.header.stamp = stamp;
+  odom.header.frame_id = n.map_frame;
+  odom.child_frame_id = n.base_frame;
+  odom.pose.pose = tf2::toMsg(T_map_base);
+  if (chain_.velocity_valid()) {
+    odom.twist.twist.linear.x = chain_.linear().x();
+    odom.twist.twist.linear.y = chain_.linear().y();
+    odom.twist.twist.linear.z = chain_.linear().z();
+    odom.twist.twist.angular.x = chain_.angular().x();
+    odom.twist.twist.angular.y = chain_.angular().y();
+    odom.twist.twist.angular.z = chain_.angular().z();
+  }
+  pub_odom_.publish(odom);
+}
+
+void SlamNode::publish_keyframe_outputs(const FrameInput& f, const cv::Mat& exclusion) {
+  const NodeOptions& n = cfg_.node;
+  {  // latched: always published, so that a late subscriber gets the current map
+    std::vector<Eigen::Vector3d> world;
+    Eigen::Isometry3d T_map_cam0;
+    {
+      std::lock_guard<std::mutex> lk(system_mutex_);
+      world = system_->map_points();
+      T_map_cam0 = T_map_world_ * *T_base_cam_;
+    }
+    std::vector<Eigen::Vector3f> points;
+    points.reserve(world.size());
+    for (const Eigen::Vector3d& p : world) points.push_back((T_map_cam0 * p).cast<float>());
+    sensor_msgs::PointCloud2 msg = to_cloud_msg(points, {});
+    msg.header.stamp = f.header.stamp;
+    msg.header.frame_id = n.map_frame;
+    pub_map_points_.publish(msg);
+  }
+  if (!pub_cloud_) return;
+  DenseView view;
+  if (!dense_view(f, exclusion, view)) {
+    ++counters_.cloud_failures;
+    ROS_WARN_THROTTLE(5.0, "dynaorb_node: no depth for the keyframe cloud");
+    return;
+  }
+  auto publish = [&](ros::Publisher& pub, const cv::Mat& exclude) {
+    DenseCloud cloud = cloud_builder_.build(view.depth_m, view.colour, cfg_.settings.camera.rgb, exclude, view.K, view.dist);
+    if (!cloud_builder_.error().empty()) {
+      ++counters_.cloud_failures;
+      ROS_WARN_THROTTLE(5.0, "dynaorb_node: keyframe cloud skipped: %s", cloud_builder_.error().c_str());
+      return;
+    }
+    if (!view.R_cam_depth.isIdentity())
+      for (Eigen::Vector3f& p : cloud.xyz) p = view.R_cam_depth * p;
+    sensor_msgs::PointCloud2 msg = to_cloud_msg(cloud.xyz, cloud.rgb);
+    msg.header.stamp = f.header.stamp;
+    msg.header.frame_id = camera_frame_;
+    pub.publish(msg);
+  };
+  publish(pub_cloud_, view.exclude);
+  ++counters_.clouds;
+  if (pub_cloud_unfiltered_) publish(pub_cloud_unfiltered_, cv::Mat());
+}
+
+void SlamNode::publish_status(const FrameInput& f, const TrackResult& r, double label_age) {
+  dynaorb::TrackingStatus s;
+  s.header.stamp = f.header.stamp;
+  s.header.frame_id = camera_frame_;
+  s.state = to_string(r.state);
+  s.method = r.method;
+  s.rejected = to_string(r.rejected);
+  s.message = r.message;
+  s.keypoints = r.keypoints;
+  s.tracked_points = r.tracked_points;
+  s.new_keyframe = r.new_keyframe;
+  s.mask_used = r.mask_used;
+  s.label_age = label_age;
+  s.frame_ms = frame_ms(r);
+  {
+    std::lock_guard<std::mutex> lk(system_mutex_);
+    const MapSummary m = system_->map_summary();
+    s.keyframes = m.keyframes;
+    s.map_points = m.points;
+    const SystemCounters& c = system_->counters();
+    s.frames = c.frames;
+    s.tracked = c.tracked;
+    s.lost = c.lost;
+    s.refused = c.rejected;
+  }
+  pub_status_.publish(s);
+  if (r.rejected != RejectReason::kNone)
+    ROS_WARN_THROTTLE(5.0, "dynaorb_node: frame %.6f rejected: %s", f.header.stamp.toSec(), r.message.c_str());
+}
+
+// ---------------------------------------------------------------- services
+
+bool SlamNode::on_save_map(dynaorb::MapFile::Request& req, dynaorb::MapFile::Response& res) {
+  std::lock_guard<std::mutex> lk(system_mutex_);
+  if (!system_) {
+    res.message = "no system yet (waiting for camera_info)";
+    return true;
+  }
+  try {
+    system_->save_map(req.path);
+    res.success = true;
+    res.message = "saved " + req.path;
+  } catch (const std::exception& e) {
+    res.message = e.what();
+  }
+  return true;
+}
+
+bool SlamNode::on_load_map(dynaorb::MapFile::Request& req, dynaorb::MapFile::Response& res) {
+  std::lock_guard<std::mutex> lk(system_mutex_);
+  if (!system_) {
+    res.message = "no system yet (waiting for camera_info)";
+    return true;
+  }
+  try {
+    system_->load_map(req.path);
+    // The loaded map's world is the map frame (the saved map's first base pose).
+    T_map_world_ = Eigen::Isometry3d::Identity();
+    map_restarted_ = false;
+    last_tracked_ = false;
+    res.success = true;
+    res.message = "loaded " + req.path + ": the next frame is relocalised in it";
+  } catch (const std::exception& e) {
+    res.message = e.what();
+  }
+  return true;
+}
+
+bool SlamNode::on_reset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+  std::lock_guard<std::mutex> lk(system_mutex_);
+  if (system_) system_->reset();
+  map_restarted_ = true;
+  last_tracked_ = false;
+  res.success = true;
+  res.message = "map dropped: the next frame starts a new one";
+  return true;
+}
+
+bool SlamNode::on_localization(std_srvs::SetBool::Request& req, std_srvs::SetBool::Response& res) {
+  std::lock_guard<std::mutex> lk(system_mutex_);
+  cfg_.system.localization_only = req.data;
+  if (system_) system_->set_localization_mode(req.data);
+  res.success = true;
+  res.message = req.data ? "localisation only" : "mapping";
+  return true;
+}
+
+bool SlamNode::on_stats(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+  res.success = true;
+  res.message = stats_json();
+  return true;
+}
+
+std::string SlamNode::stats_json() const {
+  const NodeCounters& c = counters_;
+  std::ostringstream out;
+  out << "{\"frames_in\": " << c.frames_in.load() << ", \"unreadable\": " << c.unreadable.load()
+      << ", \"waiting_for_camera_info\": " << c.waiting_for_camera_info.load()
+      << ", \"labels_in\": " << c.labels_in.load() << ", \"labels_unreadable\": " << c.labels_unreadable.load()
+      << ", \"labels_used\": " << c.labels_used.load() << ", \"labels_missing\": " << c.labels_missing.load()
+      << ", \"labels_stale\": " << c.labels_stale.load() << ", \"tf_failures\": " << c.tf_failures.load()
+      << ", \"clouds\": " << c.clouds.load() << ", \"cloud_failures\": " << c.cloud_failures.load();
+  std::lock_guard<std::mutex> lk(system_mutex_);
+  if (system_) {
+    const SystemCounters& s = system_->counters();
+    const MapSummary m = system_->map_summary();
+    out << ", \"frames\": " << s.frames << ", \"tracked\": " << s.tracked << ", \"lost\": " << s.lost
+        << ", \"rejected\": " << s.rejected << ", \"masks_dropped\": " << s.masks_dropped
+        << ", \"relocalizations\": " << s.relocalizations << ", \"loops_closed\": " << s.loops_closed
+        << ", \"keyframes\": " << m.keyframes << ", \"map_points\": " << m.points;
+  }
+  out << "}";
+  return out.str();
+}
+
+}  // namespace dynaorb::node
