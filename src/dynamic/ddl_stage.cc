@@ -6,16 +6,18 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <opencv2/calib3d.hpp>
-#include <opencv2/core/eigen.hpp>
 #include <opencv2/imgproc.hpp>
-#include <opencv2/video/tracking.hpp>
 #include <optional>
 
+#include "ddl_keyframes.h"
 #include "file_node_options.h"
 #include "view_geometry.h"
 
 namespace dynaorb::dynamic {
+
+using ddl::KeyframeEvidence;
+using ddl::Reference;
+using ddl::Seen;
 
 void DdlOptions::read(const cv::FileNode& node) {
   using detail::read_option;
@@ -55,12 +57,6 @@ bool is_mask(const cv::Mat& m, const cv::Size& size) {
   return !m.empty() && m.type() == CV_8UC1 && m.size() == size;
 }
 
-bool mask_at(const cv::Mat& mask, const cv::Point2f& p) {
-  const int x = cvRound(p.x), y = cvRound(p.y);
-  if (x < 0 || y < 0 || x >= mask.cols || y >= mask.rows) return false;
-  return mask.at<unsigned char>(y, x) != 0;
-}
-
 // The pose of the low-cost tracking (DDL-SLAM Fig. 2: "the camera poses are
 // tracked utilizing the static part of the frame", before the multi-view
 // check). source: 1 tracked, 2 ego-motion, 3 SLAM's prediction.
@@ -82,385 +78,6 @@ std::optional<Eigen::Isometry3d> current_pose(const Context& ctx, int& source) {
   }
   source = 0;
   return std::nullopt;
-}
-
-// One reference keyframe: its keypoints as world points, where they fall in
-// the current image, and what the keyframe check needs.
-struct Reference {
-  const KeyFrameData* kf = nullptr;
-  int order = 0;  // position in ctx.keyframes (newest last)
-  Eigen::Vector3d centre_w;
-  Eigen::Isometry3d T_kc;  // current camera -> keyframe camera
-  std::vector<cv::Point2f> px;       // the keypoints kept, in the keyframe's image
-  std::vector<Eigen::Vector3d> X_w;
-  std::vector<Eigen::Vector3d> X_c;  // in the current camera
-  std::vector<cv::Point2f> proj;     // raw current pixels (NaN: not in front / out of reach)
-  int in_view = 0;
-  double overlap = 0;
-  bool dense = false;  // depth image of the current size, usable by the keyframe check
-};
-
-// The keyframe's static keypoints with depth, back-projected (Algorithm 1
-// line 6, "corresponding 3D point X"). Keypoints inside the keyframe's own
-// dynamic mask are skipped: SLAM extracts none there, and a point on a
-// moving object says nothing about the current frame.
-bool back_project(const KeyFrameData& kf, const view::Camera& camera, double max_depth, Reference& r) {
-  if (!kf.frame || !kf.frame->T_cw || kf.keypoints.empty()) return false;
-  const FrameData& f = *kf.frame;
-  const bool per_point_depth = kf.depth.size() == kf.keypoints.size();
-  const bool image_depth = !f.depth.empty() && f.depth.type() == CV_32FC1;
-  if (!per_point_depth && !image_depth) return false;
-  const bool has_mask = !f.dynamic.empty() && f.dynamic.type() == CV_8UC1;
-  std::vector<cv::Point2f> px;
-  std::vector<float> z;
-  for (size_t i = 0; i < kf.keypoints.size(); ++i) {
-    const cv::Point2f& p = kf.keypoints[i];
-    if (!std::isfinite(p.x) || !std::isfinite(p.y)) continue;
-    float d = 0.f;
-    if (per_point_depth) {
-      d = kf.depth[i];
-    } else {
-      const int x = cvRound(p.x), y = cvRound(p.y);
-      if (x >= 0 && y >= 0 && x < f.depth.cols && y < f.depth.rows) d = f.depth.at<float>(y, x);
-    }
-    if (!view::valid_depth(d) || (max_depth > 0 && d > max_depth)) continue;
-    if (has_mask && mask_at(f.dynamic, p)) continue;
-    px.push_back(p);
-    z.push_back(d);
-  }
-  if (px.empty()) return false;
-  const std::vector<cv::Point2f> rays = camera.rays(px);
-  const Eigen::Isometry3d T_wc = f.T_cw->inverse();
-  r.kf = &kf;
-  r.px = px;
-  r.centre_w = T_wc.translation();
-  r.X_w.reserve(px.size());
-  for (size_t i = 0; i < px.size(); ++i)
-    r.X_w.push_back(T_wc * Eigen::Vector3d(rays[i].x * z[i], rays[i].y * z[i], z[i]));
-  return true;
-}
-
-// z' of Algorithm 1: the current depth at x'. With a search window (ours,
-// after DynaSLAM's code): the depth in the window closest to z_proj, so a
-// projection that misses a depth edge by a pixel or two still finds X's
-// surface; 0 when the window holds no depth at all.
-float closest_depth(const cv::Mat& depth, const cv::Point& p, float z_ref, int radius) {
-  const float z0 = depth.at<float>(p.y, p.x);
-  if (radius <= 0) return view::valid_depth(z0) ? z0 : 0.f;
-  float best = 0.f;
-  float best_diff = std::numeric_limits<float>::infinity();
-  for (int y = std::max(0, p.y - radius); y <= std::min(depth.rows - 1, p.y + radius); ++y) {
-    const float* row = depth.ptr<float>(y);
-    for (int x = std::max(0, p.x - radius); x <= std::min(depth.cols - 1, p.x + radius); ++x) {
-      const float d = row[x];
-      if (!view::valid_depth(d)) continue;
-      const float diff = std::abs(d - z_ref);
-      if (diff < best_diff) {
-        best_diff = diff;
-        best = d;
-      }
-    }
-  }
-  return best;
-}
-
-// What the reference keyframes say about each current pixel's surface P
-// (its depth back-projected with the current pose): DdlOptions'
-// confirm_with_keyframes. Every keyframe is resampled into the current view
-// through P (its depth and grey where P would appear in it), so a static P
-// gives back its own depth and texture.
-enum class Seen : unsigned char {
-  kUnknown = 0,
-  kStatic,   // some keyframe saw P there: depth and texture agree
-  kMoving,   // some keyframe saw through P's place, or other texture at P's depth
-  kNothing,  // no keyframe saw P's place (occluded, out of view, no depth)
-};
-
-class KeyframeEvidence {
- public:
-  KeyframeEvidence(const cv::Mat& depth, const cv::Mat& grey, const std::vector<cv::Point2f>& rays,
-                   const std::vector<Reference>& refs, const view::Camera& camera, const DdlOptions& o)
-      : depth_(depth), o_(o), cache_(depth.size(), CV_8UC1, cv::Scalar(0)) {
-    texture_ = o.confirm_min_zncc > -1 && grey.size() == depth.size() && grey.type() == CV_8UC1;
-    if (texture_) {
-      smooth(grey, grey_);
-      // Current pixels next to a depth edge: their grey blends both sides.
-      const float far = std::numeric_limits<float>::max();
-      cv::Mat d = depth.clone(), d_hi, d_lo;
-      cv::patchNaNs(d, 0);
-      cv::Mat d_for_min = d.clone();
-      d_for_min.setTo(far, d <= 0);
-      const cv::Mat k3 = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(3, 3));
-      cv::dilate(d, d_hi, k3);
-      cv::erode(d_for_min, d_lo, k3);
-      edge_ = (d_hi - d_lo) > o.depth_threshold_m;
-    }
-    for (const Reference& r : refs)
-      if (r.dense) warp(*r.kf->frame, r.T_kc, rays, camera);
-  }
-
-  Seen operator()(int x, int y) {
-    unsigned char& c = cache_.at<unsigned char>(y, x);
-    if (c == 0) c = static_cast<unsigned char>(classify(x, y));
-    return static_cast<Seen>(c);
-  }
-
-  // Moving, and part of a 3x3 block of moving pixels (a morphological
-  // opening): depth edges of a real sensor do not sit exactly where the
-  // colour edges are, and leave lines of "moving" a pixel or two wide along
-  // static silhouettes; moving objects are areas.
-  bool moving_area(int x, int y) {
-    if ((*this)(x, y) != Seen::kMoving) return false;
-    const int w = cache_.cols, h = cache_.rows;
-    for (int cy = y - 1; cy <= y + 1; ++cy)
-      for (int cx = x - 1; cx <= x + 1; ++cx) {
-        bool all = true;
-        for (int v = cy - 1; v <= cy + 1 && all; ++v)
-          for (int u = cx - 1; u <= cx + 1 && all; ++u)
-            all = u >= 0 && v >= 0 && u < w && v < h && (*this)(u, v) == Seen::kMoving;
-        if (all) return true;
-      }
-    return false;
-  }
-
- private:
-  struct Warped {
-    cv::Mat agree;    // CV_8UC1: the keyframe's depth there matches P's within tau_d (1; 2: away from its depth edges)
-    cv::Mat through;  // CV_8UC1: the keyframe saw beyond P's place
-    cv::Mat grey;     // CV_32FC1: the keyframe's (smoothed) grey where P lands, empty without texture
-  };
-
-  // Both images are compared slightly blurred: resampling a texture finer
-  // than the pixels (a floor at a grazing angle) aliases differently in
-  // each view.
-  void smooth(const cv::Mat& in, cv::Mat& out) const {
-    in.convertTo(out, CV_32F);
-    if (o_.confirm_blur_sigma_px > 0) cv::GaussianBlur(out, out, cv::Size(), o_.confirm_blur_sigma_px);
-  }
-
-  void warp(const FrameData& f, const Eigen::Isometry3d& T_kc, const std::vector<cv::Point2f>& rays,
-            const view::Camera& camera) {
-    const cv::Size size = depth_.size();
-    const int w = size.width, h = size.height;
-    cv::Mat map_x(size, CV_32FC1, cv::Scalar(-1)), map_y(size, CV_32FC1, cv::Scalar(-1));
-    cv::Mat z_k(size, CV_32FC1, cv::Scalar(0));
-    for (int y = 0; y < h; ++y) {
-      const float* d = depth_.ptr<float>(y);
-      float* mx = map_x.ptr<float>(y);
-      float* my = map_y.ptr<float>(y);
-      float* zk = z_k.ptr<float>(y);
-      for (int x = 0; x < w; ++x) {
-        if (!view::valid_depth(d[x])) continue;
-        const cv::Point2f& ray = rays[static_cast<size_t>(y) * w + x];
-        const Eigen::Vector3d P_k = T_kc * Eigen::Vector3d(ray.x * d[x], ray.y * d[x], d[x]);
-        const cv::Point2f q = camera.project(P_k);
-        if (!view::inside(q, f.depth.size())) continue;
-        mx[x] = q.x;
-        my[x] = q.y;
-        zk[x] = static_cast<float>(P_k.z());
-      }
-    }
-    // The keyframe's nearest and farthest depth around where P lands: a
-    // projection a pixel off a depth edge still finds P's surface (DynaSLAM's
-    // code searches a window for z' likewise).
-    const float far = std::numeric_limits<float>::max();
-    cv::Mat kd;
-    f.depth.copyTo(kd);
-    cv::patchNaNs(kd, 0);
-    const cv::Mat holes = kd <= 0;
-    cv::Mat kd_min_src = kd.clone();
-    kd_min_src.setTo(far, holes);
-    const int r = std::max(0, o_.confirm_search_radius_px);
-    const cv::Mat window = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * r + 1, 2 * r + 1));
-    cv::Mat kmin, kmax, d_near, d_min, d_max;
-    cv::erode(kd_min_src, kmin, window);
-    cv::dilate(kd, kmax, window);
-    cv::remap(kd, d_near, map_x, map_y, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
-    cv::remap(kmin, d_min, map_x, map_y, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
-    cv::remap(kmax, d_max, map_x, map_y, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
-    Warped wk;
-    wk.agree = cv::Mat(size, CV_8UC1, cv::Scalar(0));
-    wk.through = cv::Mat(size, CV_8UC1, cv::Scalar(0));
-    const float tau = static_cast<float>(o_.depth_threshold_m);
-    for (int y = 0; y < h; ++y) {
-      const float* zk = z_k.ptr<float>(y);
-      const float* dn = d_near.ptr<float>(y);
-      const float* dl = d_min.ptr<float>(y);
-      const float* dh = d_max.ptr<float>(y);
-      unsigned char* a = wk.agree.ptr<unsigned char>(y);
-      unsigned char* t = wk.through.ptr<unsigned char>(y);
-      for (int x = 0; x < w; ++x) {
-        if (zk[x] <= 0.f || dh[x] <= 0.f) continue;
-        const auto near = [&](float v) { return v > 0.f && v < far && std::abs(v - zk[x]) <= tau; };
-        // 2: the keyframe's window lies on one surface, so its grey there is
-        // that surface's and not blended with a neighbour across a depth edge.
-        if (near(dn[x]) || near(dl[x]) || near(dh[x])) a[x] = dh[x] - dl[x] <= tau ? 2 : 1;
-        else if (dl[x] > zk[x] + tau && dl[x] < far) t[x] = 1;
-      }
-    }
-    if (texture_ && !f.grey.empty() && f.grey.size() == f.depth.size() && f.grey.type() == CV_8UC1) {
-      cv::Mat kf_grey;
-      smooth(f.grey, kf_grey);
-      cv::remap(kf_grey, wk.grey, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0));
-    }
-    warped_.push_back(std::move(wk));
-  }
-
-  Seen classify(int x, int y) const {
-    bool moving = false;
-    for (const Warped& wk : warped_) {
-      if (wk.through.at<unsigned char>(y, x)) {
-        moving = true;
-        continue;
-      }
-      if (!wk.agree.at<unsigned char>(y, x)) continue;
-      if (wk.grey.empty() || texture_agrees(wk, x, y)) return Seen::kStatic;
-      moving = true;
-    }
-    return moving ? Seen::kMoving : Seen::kNothing;
-  }
-
-  // Zero-mean normalised cross-correlation over the patch pixels on P's own
-  // surface (current depth within tau_d of P's) whose depth the keyframe
-  // confirms, away from depth edges in either image; fewer than a quarter
-  // of the patch, or flat in both images: depth alone decides. Flat in one
-  // image only: the texture changed.
-  bool texture_agrees(const Warped& wk, int x, int y) const {
-    const int pr = std::max(0, o_.confirm_patch_radius_px);
-    const float z0 = depth_.at<float>(y, x);
-    const float tau = static_cast<float>(o_.depth_threshold_m);
-    double sk = 0, sc = 0, skk = 0, scc = 0, skc = 0;
-    int n = 0;
-    for (int v = std::max(0, y - pr); v <= std::min(depth_.rows - 1, y + pr); ++v) {
-      const float* d = depth_.ptr<float>(v);
-      const unsigned char* a = wk.agree.ptr<unsigned char>(v);
-      const float* gk = wk.grey.ptr<float>(v);
-      const float* gc = grey_.ptr<float>(v);
-      const unsigned char* e = edge_.ptr<unsigned char>(v);
-      for (int u = std::max(0, x - pr); u <= std::min(depth_.cols - 1, x + pr); ++u) {
-        if (a[u] != 2 || e[u] || std::abs(d[u] - z0) > tau) continue;
-        sk += gk[u];
-        sc += gc[u];
-        skk += gk[u] * gk[u];
-        scc += gc[u] * gc[u];
-        skc += gk[u] * gc[u];
-        ++n;
-      }
-    }
-    if (4 * n < (2 * pr + 1) * (2 * pr + 1)) return true;
-    const double vk = skk - sk * sk / n, vc = scc - sc * sc / n, ckc = skc - sk * sc / n;
-    const double min_var = o_.confirm_min_std_grey * o_.confirm_min_std_grey * n;
-    // A flat patch in both images: no texture to compare.
-    if (vk < min_var && vc < min_var) return true;
-    if (vk < min_var || vc < min_var) return false;
-    return ckc / std::sqrt(vk * vc) >= o_.confirm_min_zncc;
-  }
-
-  const cv::Mat& depth_;
-  const DdlOptions& o_;
-  bool texture_ = false;
-  cv::Mat grey_;
-  cv::Mat edge_;
-  std::vector<Warped> warped_;
-  cv::Mat cache_;
-};
-
-// Ours: the pose DDL-SLAM checks with comes from its low-cost tracking,
-// ORB-SLAM2's tracking against the map restricted to the static part, which
-// the ego-motion or the constant-velocity prediction only approximate; the
-// keyframe check compares textures pixel by pixel and needs the pose to a
-// pixel. So the reference keyframes' points (X, with depth) are followed from
-// their keyframe image into the current one by pyramidal Lucas-Kanade,
-// starting where the given pose projects them, and the pose is re-estimated
-// from them by PnP RANSAC (points on moving objects are its outliers).
-std::optional<Eigen::Isometry3d> refine_pose(const std::vector<Reference>& refs, const cv::Mat& grey,
-                                             const map::Calibration& calib, const Eigen::Isometry3d& T_cw,
-                                             const DdlOptions& o, StageReport& report) {
-  std::vector<cv::Point3f> object;
-  std::vector<cv::Point2f> image;
-  const cv::Size size = grey.size();
-  const cv::Size window(21, 21);
-  constexpr int kLevels = 3;
-  std::vector<cv::Mat> pyramid;  // the current image's, built once for all keyframes
-  cv::buildOpticalFlowPyramid(grey, pyramid, window, kLevels);
-  for (const Reference& r : refs) {
-    const cv::Mat& kf_grey = r.kf->frame->grey;
-    if (kf_grey.empty() || kf_grey.type() != CV_8UC1 || kf_grey.size() != size) continue;
-    std::vector<cv::Point2f> from, to;
-    std::vector<size_t> idx;
-    // A few hundred points fix a pose; more only cost time.
-    const size_t stride = std::max<size_t>(1, r.px.size() / std::max(1, o.refine_points_per_keyframe));
-    for (size_t i = 0; i < r.px.size(); i += stride) {
-      if (!view::inside(r.proj[i], size, o.border_px)) continue;
-      from.push_back(r.px[i]);
-      to.push_back(r.proj[i]);
-      idx.push_back(i);
-    }
-    if (from.empty()) continue;
-    std::vector<unsigned char> ok;
-    std::vector<float> err;
-    cv::calcOpticalFlowPyrLK(kf_grey, pyramid, from, to, ok, err, window, kLevels,
-                             cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 30, 0.01),
-                             cv::OPTFLOW_USE_INITIAL_FLOW);
-    for (size_t j = 0; j < from.size(); ++j) {
-      if (!ok[j] || !view::inside(to[j], size)) continue;
-      if (cv::norm(to[j] - r.proj[idx[j]]) > o.refine_max_shift_px) continue;
-      const Eigen::Vector3d& X = r.X_w[idx[j]];
-      object.emplace_back(static_cast<float>(X.x()), static_cast<float>(X.y()), static_cast<float>(X.z()));
-      image.push_back(to[j]);
-    }
-  }
-  report.values["refine_points"] = static_cast<double>(object.size());
-  if (static_cast<int>(object.size()) < o.refine_min_inliers) return std::nullopt;
-  cv::Mat R;
-  cv::eigen2cv(Eigen::Matrix3d(T_cw.linear()), R);
-  cv::Mat rvec, tvec;
-  cv::Rodrigues(R, rvec);
-  cv::eigen2cv(Eigen::Vector3d(T_cw.translation()), tvec);
-  const cv::Mat dist = calib.dist.empty() ? cv::Mat() : calib.dist;
-  std::vector<int> inliers;
-  const bool solved = cv::solvePnPRansac(object, image, calib.K, dist, rvec, tvec, true, 200,
-                                         static_cast<float>(o.refine_reprojection_px), 0.99, inliers,
-                                         cv::SOLVEPNP_ITERATIVE);
-  if (!solved) return std::nullopt;
-  cv::Rodrigues(rvec, R);
-  Eigen::Matrix3d Re;
-  Eigen::Vector3d te;
-  cv::cv2eigen(R, Re);
-  cv::cv2eigen(tvec, te);
-  Eigen::Isometry3d refined = Eigen::Isometry3d::Identity();
-  refined.linear() = Re;
-  refined.translation() = te;
-  if (!refined.matrix().allFinite()) return std::nullopt;
-  // The refined pose must explain more of the points than the given one
-  // (RANSAC's final fit can drift, and on a frame full of movers a
-  // consensus of moving points can win); points behind the camera count
-  // against it.
-  const view::Camera camera(calib);
-  const auto explained = [&](const Eigen::Isometry3d& T, double threshold) {
-    int n = 0;
-    for (size_t i = 0; i < object.size(); ++i) {
-      const cv::Point2f q = camera.project(T * Eigen::Vector3d(object[i].x, object[i].y, object[i].z));
-      if (std::isfinite(q.x) && cv::norm(q - image[i]) <= threshold) ++n;
-    }
-    return n;
-  };
-  const int n_refined = explained(refined, o.refine_reprojection_px);
-  report.values["refine_inliers"] = n_refined;
-  if (n_refined < o.refine_min_inliers) return std::nullopt;
-  // Compared at half the threshold, and by a clear margin (5 %): a pose
-  // that is right puts the static points within a fraction of a pixel, a
-  // compromise with moving ones does not, and a given pose that is already
-  // right is kept.
-  const int n_close = explained(refined, 0.5 * o.refine_reprojection_px);
-  const int n_given = explained(T_cw, 0.5 * o.refine_reprojection_px);
-  report.values["refine_close"] = n_close;
-  report.values["refine_close_given_pose"] = n_given;
-  if (n_close <= n_given + std::max(5, n_given / 20)) return std::nullopt;
-  const Eigen::Isometry3d D = refined * T_cw.inverse();
-  report.values["pose_correction_m"] = D.translation().norm();
-  report.values["pose_correction_deg"] = Eigen::AngleAxisd(D.linear()).angle() * 180.0 / M_PI;
-  return refined;
 }
 
 }  // namespace
@@ -567,7 +184,7 @@ void DdlStage::process(Context& ctx, StageReport& report) {
     const KeyFrameData& kf = (*ctx.keyframes)[k];
     if (kf.frame && kf.frame->id == cur.id && cur.id >= 0) continue;
     Reference r;
-    if (!back_project(kf, camera, o_.max_depth_m, r)) continue;
+    if (!ddl::back_project(kf, camera, o_.max_depth_m, r)) continue;
     r.order = static_cast<int>(k);
     r.T_kc = *kf.frame->T_cw * T_wc;
     r.dense = is_depth(kf.frame->depth, size);
@@ -595,7 +212,7 @@ void DdlStage::process(Context& ctx, StageReport& report) {
   if (o_.refine_pose) {
     std::optional<Eigen::Isometry3d> refined;
     try {
-      refined = refine_pose(refs, cur.grey, calib, *T_cw, o_, report);
+      refined = ddl::refine_pose(refs, cur.grey, calib, *T_cw, o_, report);
     } catch (const cv::Exception&) {
       report.values["refine_failed"] = 1;  // degenerate point sets: keep the given pose
     }
@@ -646,7 +263,8 @@ void DdlStage::process(Context& ctx, StageReport& report) {
         }
         continue;
       }
-      const float z_meas = closest_depth(cur.depth, q, static_cast<float>(z_proj), o_.depth_search_radius_px);
+      const float z_meas =
+          ddl::closest_depth(cur.depth, q, static_cast<float>(z_proj), o_.depth_search_radius_px);
       if (z_meas <= 0.f) {
         ++no_depth;
         continue;

@@ -162,7 +162,6 @@ InpaintResult inpaint_background(const FrameData& current, const std::vector<Key
 
     // Pass 1: the keyframe's static surface, as depth, into the current view.
     pts.clear();
-    pts_pixel.clear();
     for (int v = 0; v < h; ++v) {
       const float* drow = f.depth.ptr<float>(v);
       const unsigned char* mrow = kf_mask.ptr<unsigned char>(v);
@@ -171,7 +170,6 @@ InpaintResult inpaint_background(const FrameData& current, const std::vector<Key
         if (!view::valid_depth(d) || mrow[u] || (o.max_depth_m > 0 && d > o.max_depth_m)) continue;
         const cv::Point2f& ray = grid_rays[static_cast<size_t>(v) * w + u];
         pts.push_back(T_ck * Eigen::Vector3d(ray.x * d, ray.y * d, d));
-        pts_pixel.push_back(static_cast<size_t>(v) * w + u);
       }
     }
     const std::vector<cv::Point2f> landed = camera.project(pts);

@@ -1,0 +1,248 @@
+// The DDL stage's reference keyframes: back-projection of their keypoints
+// and the keyframe check (see ddl_keyframes.h).
+#include "ddl_keyframes.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <opencv2/imgproc.hpp>
+
+namespace dynaorb::dynamic::ddl {
+
+namespace {
+
+bool mask_at(const cv::Mat& mask, const cv::Point2f& p) {
+  const int x = cvRound(p.x), y = cvRound(p.y);
+  if (x < 0 || y < 0 || x >= mask.cols || y >= mask.rows) return false;
+  return mask.at<unsigned char>(y, x) != 0;
+}
+
+}  // namespace
+
+bool back_project(const KeyFrameData& kf, const view::Camera& camera, double max_depth, Reference& r) {
+  if (!kf.frame || !kf.frame->T_cw || kf.keypoints.empty()) return false;
+  const FrameData& f = *kf.frame;
+  const bool per_point_depth = kf.depth.size() == kf.keypoints.size();
+  const bool image_depth = !f.depth.empty() && f.depth.type() == CV_32FC1;
+  if (!per_point_depth && !image_depth) return false;
+  const bool has_mask = !f.dynamic.empty() && f.dynamic.type() == CV_8UC1;
+  std::vector<cv::Point2f> px;
+  std::vector<float> z;
+  for (size_t i = 0; i < kf.keypoints.size(); ++i) {
+    const cv::Point2f& p = kf.keypoints[i];
+    if (!std::isfinite(p.x) || !std::isfinite(p.y)) continue;
+    float d = 0.f;
+    if (per_point_depth) {
+      d = kf.depth[i];
+    } else {
+      const int x = cvRound(p.x), y = cvRound(p.y);
+      if (x >= 0 && y >= 0 && x < f.depth.cols && y < f.depth.rows) d = f.depth.at<float>(y, x);
+    }
+    if (!view::valid_depth(d) || (max_depth > 0 && d > max_depth)) continue;
+    if (has_mask && mask_at(f.dynamic, p)) continue;
+    px.push_back(p);
+    z.push_back(d);
+  }
+  if (px.empty()) return false;
+  const std::vector<cv::Point2f> rays = camera.rays(px);
+  const Eigen::Isometry3d T_wc = f.T_cw->inverse();
+  r.kf = &kf;
+  r.px = px;
+  r.centre_w = T_wc.translation();
+  r.X_w.reserve(px.size());
+  for (size_t i = 0; i < px.size(); ++i)
+    r.X_w.push_back(T_wc * Eigen::Vector3d(rays[i].x * z[i], rays[i].y * z[i], z[i]));
+  return true;
+}
+
+float closest_depth(const cv::Mat& depth, const cv::Point& p, float z_ref, int radius) {
+  const float z0 = depth.at<float>(p.y, p.x);
+  if (radius <= 0) return view::valid_depth(z0) ? z0 : 0.f;
+  float best = 0.f;
+  float best_diff = std::numeric_limits<float>::infinity();
+  for (int y = std::max(0, p.y - radius); y <= std::min(depth.rows - 1, p.y + radius); ++y) {
+    const float* row = depth.ptr<float>(y);
+    for (int x = std::max(0, p.x - radius); x <= std::min(depth.cols - 1, p.x + radius); ++x) {
+      const float d = row[x];
+      if (!view::valid_depth(d)) continue;
+      const float diff = std::abs(d - z_ref);
+      if (diff < best_diff) {
+        best_diff = diff;
+        best = d;
+      }
+    }
+  }
+  return best;
+}
+
+KeyframeEvidence::KeyframeEvidence(const cv::Mat& depth, const cv::Mat& grey,
+                                   const std::vector<cv::Point2f>& rays, const std::vector<Reference>& refs,
+                                   const view::Camera& camera, const DdlOptions& o)
+    : depth_(depth), o_(o), cache_(depth.size(), CV_8UC1, cv::Scalar(0)) {
+  texture_ = o.confirm_min_zncc > -1 && grey.size() == depth.size() && grey.type() == CV_8UC1;
+  if (texture_) {
+    smooth(grey, grey_);
+    // Current pixels next to a depth edge: their grey blends both sides.
+    const float far = std::numeric_limits<float>::max();
+    cv::Mat d = depth.clone(), d_hi, d_lo;
+    cv::patchNaNs(d, 0);
+    cv::Mat d_for_min = d.clone();
+    d_for_min.setTo(far, d <= 0);
+    const cv::Mat k3 = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(3, 3));
+    cv::dilate(d, d_hi, k3);
+    cv::erode(d_for_min, d_lo, k3);
+    edge_ = (d_hi - d_lo) > o.depth_threshold_m;
+  }
+  for (const Reference& r : refs)
+    if (r.dense) warp(*r.kf->frame, r.T_kc, rays, camera);
+}
+
+Seen KeyframeEvidence::operator()(int x, int y) {
+  unsigned char& c = cache_.at<unsigned char>(y, x);
+  if (c == 0) c = static_cast<unsigned char>(classify(x, y));
+  return static_cast<Seen>(c);
+}
+
+bool KeyframeEvidence::moving_area(int x, int y) {
+  if ((*this)(x, y) != Seen::kMoving) return false;
+  const int w = cache_.cols, h = cache_.rows;
+  for (int cy = y - 1; cy <= y + 1; ++cy)
+    for (int cx = x - 1; cx <= x + 1; ++cx) {
+      bool all = true;
+      for (int v = cy - 1; v <= cy + 1 && all; ++v)
+        for (int u = cx - 1; u <= cx + 1 && all; ++u)
+          all = u >= 0 && v >= 0 && u < w && v < h && (*this)(u, v) == Seen::kMoving;
+      if (all) return true;
+    }
+  return false;
+}
+
+// Both images are compared slightly blurred: resampling a texture finer
+// than the pixels (a floor at a grazing angle) aliases differently in
+// each view.
+void KeyframeEvidence::smooth(const cv::Mat& in, cv::Mat& out) const {
+  in.convertTo(out, CV_32F);
+  if (o_.confirm_blur_sigma_px > 0) cv::GaussianBlur(out, out, cv::Size(), o_.confirm_blur_sigma_px);
+}
+
+// The keyframe resampled through every current pixel's surface: where its
+// depth agrees, where it sees beyond, and its grey.
+void KeyframeEvidence::warp(const FrameData& f, const Eigen::Isometry3d& T_kc,
+                            const std::vector<cv::Point2f>& rays, const view::Camera& camera) {
+  const cv::Size size = depth_.size();
+  const int w = size.width, h = size.height;
+  cv::Mat map_x(size, CV_32FC1, cv::Scalar(-1)), map_y(size, CV_32FC1, cv::Scalar(-1));
+  cv::Mat z_k(size, CV_32FC1, cv::Scalar(0));
+  for (int y = 0; y < h; ++y) {
+    const float* d = depth_.ptr<float>(y);
+    float* mx = map_x.ptr<float>(y);
+    float* my = map_y.ptr<float>(y);
+    float* zk = z_k.ptr<float>(y);
+    for (int x = 0; x < w; ++x) {
+      if (!view::valid_depth(d[x])) continue;
+      const cv::Point2f& ray = rays[static_cast<size_t>(y) * w + x];
+      const Eigen::Vector3d P_k = T_kc * Eigen::Vector3d(ray.x * d[x], ray.y * d[x], d[x]);
+      const cv::Point2f q = camera.project(P_k);
+      if (!view::inside(q, f.depth.size())) continue;
+      mx[x] = q.x;
+      my[x] = q.y;
+      zk[x] = static_cast<float>(P_k.z());
+    }
+  }
+  // The keyframe's nearest and farthest depth around where P lands: a
+  // projection a pixel off a depth edge still finds P's surface (DynaSLAM's
+  // code searches a window for z' likewise).
+  const float far = std::numeric_limits<float>::max();
+  cv::Mat kd;
+  f.depth.copyTo(kd);
+  cv::patchNaNs(kd, 0);
+  const cv::Mat holes = kd <= 0;
+  cv::Mat kd_min_src = kd.clone();
+  kd_min_src.setTo(far, holes);
+  const int r = std::max(0, o_.confirm_search_radius_px);
+  const cv::Mat window = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * r + 1, 2 * r + 1));
+  cv::Mat kmin, kmax, d_near, d_min, d_max;
+  cv::erode(kd_min_src, kmin, window);
+  cv::dilate(kd, kmax, window);
+  cv::remap(kd, d_near, map_x, map_y, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
+  cv::remap(kmin, d_min, map_x, map_y, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
+  cv::remap(kmax, d_max, map_x, map_y, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
+  Warped wk;
+  wk.agree = cv::Mat(size, CV_8UC1, cv::Scalar(0));
+  wk.through = cv::Mat(size, CV_8UC1, cv::Scalar(0));
+  const float tau = static_cast<float>(o_.depth_threshold_m);
+  for (int y = 0; y < h; ++y) {
+    const float* zk = z_k.ptr<float>(y);
+    const float* dn = d_near.ptr<float>(y);
+    const float* dl = d_min.ptr<float>(y);
+    const float* dh = d_max.ptr<float>(y);
+    unsigned char* a = wk.agree.ptr<unsigned char>(y);
+    unsigned char* t = wk.through.ptr<unsigned char>(y);
+    for (int x = 0; x < w; ++x) {
+      if (zk[x] <= 0.f || dh[x] <= 0.f) continue;
+      const auto near = [&](float v) { return v > 0.f && v < far && std::abs(v - zk[x]) <= tau; };
+      // 2: the keyframe's window lies on one surface, so its grey there is
+      // that surface's and not blended with a neighbour across a depth edge.
+      if (near(dn[x]) || near(dl[x]) || near(dh[x])) a[x] = dh[x] - dl[x] <= tau ? 2 : 1;
+      else if (dl[x] > zk[x] + tau && dl[x] < far) t[x] = 1;
+    }
+  }
+  if (texture_ && !f.grey.empty() && f.grey.size() == f.depth.size() && f.grey.type() == CV_8UC1) {
+    cv::Mat kf_grey;
+    smooth(f.grey, kf_grey);
+    cv::remap(kf_grey, wk.grey, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0));
+  }
+  warped_.push_back(std::move(wk));
+}
+
+Seen KeyframeEvidence::classify(int x, int y) const {
+  bool moving = false;
+  for (const Warped& wk : warped_) {
+    if (wk.through.at<unsigned char>(y, x)) {
+      moving = true;
+      continue;
+    }
+    if (!wk.agree.at<unsigned char>(y, x)) continue;
+    if (wk.grey.empty() || texture_agrees(wk, x, y)) return Seen::kStatic;
+    moving = true;
+  }
+  return moving ? Seen::kMoving : Seen::kNothing;
+}
+
+// Zero-mean normalised cross-correlation over the patch pixels on P's own
+// surface (current depth within tau_d of P's) whose depth the keyframe
+// confirms, away from depth edges in either image; fewer than a quarter
+// of the patch, or flat in both images: depth alone decides. Flat in one
+// image only: the texture changed.
+bool KeyframeEvidence::texture_agrees(const Warped& wk, int x, int y) const {
+  const int pr = std::max(0, o_.confirm_patch_radius_px);
+  const float z0 = depth_.at<float>(y, x);
+  const float tau = static_cast<float>(o_.depth_threshold_m);
+  double sk = 0, sc = 0, skk = 0, scc = 0, skc = 0;
+  int n = 0;
+  for (int v = std::max(0, y - pr); v <= std::min(depth_.rows - 1, y + pr); ++v) {
+    const float* d = depth_.ptr<float>(v);
+    const unsigned char* a = wk.agree.ptr<unsigned char>(v);
+    const float* gk = wk.grey.ptr<float>(v);
+    const float* gc = grey_.ptr<float>(v);
+    const unsigned char* e = edge_.ptr<unsigned char>(v);
+    for (int u = std::max(0, x - pr); u <= std::min(depth_.cols - 1, x + pr); ++u) {
+      if (a[u] != 2 || e[u] || std::abs(d[u] - z0) > tau) continue;
+      sk += gk[u];
+      sc += gc[u];
+      skk += gk[u] * gk[u];
+      scc += gc[u] * gc[u];
+      skc += gk[u] * gc[u];
+      ++n;
+    }
+  }
+  if (4 * n < (2 * pr + 1) * (2 * pr + 1)) return true;
+  const double vk = skk - sk * sk / n, vc = scc - sc * sc / n, ckc = skc - sk * sc / n;
+  const double min_var = o_.confirm_min_std_grey * o_.confirm_min_std_grey * n;
+  // A flat patch in both images: no texture to compare.
+  if (vk < min_var && vc < min_var) return true;
+  if (vk < min_var || vc < min_var) return false;
+  return ckc / std::sqrt(vk * vc) >= o_.confirm_min_zncc;
+}
+
+}  // namespace dynaorb::dynamic::ddl

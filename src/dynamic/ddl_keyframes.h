@@ -1,0 +1,110 @@
+#pragma once
+// The reference keyframes as DDL-SLAM's multi-view stage (ddl_stage.h) uses
+// them: their keypoints back-projected to world points (Algorithm 1), the
+// keyframe check that says whether a current pixel's surface was seen
+// static by them, and the pose refinement against their points. Internal to
+// src/dynamic.
+#include <Eigen/Geometry>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <vector>
+
+#include "dynaorb/dynamic/ddl_stage.h"
+#include "view_geometry.h"
+
+namespace dynaorb::dynamic::ddl {
+
+// One reference keyframe: its keypoints as world points, where they fall in
+// the current image, and what the keyframe check needs.
+struct Reference {
+  const KeyFrameData* kf = nullptr;
+  int order = 0;  // position in ctx.keyframes (newest last)
+  Eigen::Vector3d centre_w;
+  Eigen::Isometry3d T_kc;  // current camera -> keyframe camera
+  std::vector<cv::Point2f> px;       // the keypoints kept, in the keyframe's image
+  std::vector<Eigen::Vector3d> X_w;
+  std::vector<Eigen::Vector3d> X_c;  // in the current camera
+  std::vector<cv::Point2f> proj;     // raw current pixels (NaN: not in front / out of reach)
+  int in_view = 0;
+  double overlap = 0;
+  bool dense = false;  // depth image of the current size, usable by the keyframe check
+};
+
+// The keyframe's static keypoints with depth, back-projected (Algorithm 1
+// line 6, "corresponding 3D point X"). Keypoints inside the keyframe's own
+// dynamic mask are skipped: SLAM extracts none there, and a point on a
+// moving object says nothing about the current frame. Fills kf, px,
+// centre_w and X_w; false when nothing is left.
+bool back_project(const KeyFrameData& kf, const view::Camera& camera, double max_depth, Reference& r);
+
+// z' of Algorithm 1: the current depth at x'. With a search window (ours,
+// after DynaSLAM's code): the depth in the window closest to z_proj, so a
+// projection that misses a depth edge by a pixel or two still finds X's
+// surface; 0 when the window holds no depth at all.
+float closest_depth(const cv::Mat& depth, const cv::Point& p, float z_ref, int radius);
+
+// What the reference keyframes say about each current pixel's surface P
+// (its depth back-projected with the current pose): DdlOptions'
+// confirm_with_keyframes. Every keyframe is resampled into the current view
+// through P (its depth and grey where P would appear in it), so a static P
+// gives back its own depth and texture.
+enum class Seen : unsigned char {
+  kUnknown = 0,  // not asked yet (the cache's empty value)
+  kStatic,   // some keyframe saw P there: depth and texture agree
+  kMoving,   // some keyframe saw through P's place, or other texture at P's depth
+  kNothing,  // no keyframe saw P's place (occluded, out of view, no depth)
+};
+
+class KeyframeEvidence {
+ public:
+  // depth, grey: the current frame's; rays: of every current pixel; refs:
+  // the reference keyframes with T_kc set. All must outlive the object.
+  KeyframeEvidence(const cv::Mat& depth, const cv::Mat& grey, const std::vector<cv::Point2f>& rays,
+                   const std::vector<Reference>& refs, const view::Camera& camera, const DdlOptions& o);
+
+  Seen operator()(int x, int y);
+
+  // Moving, and part of a 3x3 block of moving pixels (a morphological
+  // opening): depth edges of a real sensor do not sit exactly where the
+  // colour edges are, and leave lines of "moving" a pixel or two wide along
+  // static silhouettes; moving objects are areas.
+  bool moving_area(int x, int y);
+
+ private:
+  struct Warped {
+    cv::Mat agree;    // CV_8UC1: the keyframe's depth there matches P's within tau_d
+                      //   (1; 2: and its window lies on one surface)
+    cv::Mat through;  // CV_8UC1: the keyframe saw beyond P's place
+    cv::Mat grey;     // CV_32FC1: the keyframe's (smoothed) grey where P lands, empty without texture
+  };
+
+  void smooth(const cv::Mat& in, cv::Mat& out) const;
+  void warp(const FrameData& f, const Eigen::Isometry3d& T_kc, const std::vector<cv::Point2f>& rays,
+            const view::Camera& camera);
+  Seen classify(int x, int y) const;
+  bool texture_agrees(const Warped& wk, int x, int y) const;
+
+  const cv::Mat& depth_;
+  const DdlOptions& o_;
+  bool texture_ = false;
+  cv::Mat grey_;
+  cv::Mat edge_;
+  std::vector<Warped> warped_;
+  cv::Mat cache_;
+};
+
+// Ours: the pose DDL-SLAM checks with comes from its low-cost tracking,
+// ORB-SLAM2's tracking against the map restricted to the static part, which
+// the ego-motion or the constant-velocity prediction only approximate; the
+// keyframe check compares textures pixel by pixel and needs the pose to a
+// pixel. So the reference keyframes' points (X, with depth) are followed from
+// their keyframe image into the current one by pyramidal Lucas-Kanade,
+// starting where the given pose projects them, and the pose is re-estimated
+// from them by PnP RANSAC (points on moving objects are its outliers).
+// Returns the refined T_cw, or nothing (the given pose stays); fills the
+// refine_* and pose_correction_* report values.
+std::optional<Eigen::Isometry3d> refine_pose(const std::vector<Reference>& refs, const cv::Mat& grey,
+                                             const map::Calibration& calib, const Eigen::Isometry3d& T_cw,
+                                             const DdlOptions& o, StageReport& report);
+
+}  // namespace dynaorb::dynamic::ddl
