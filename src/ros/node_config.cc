@@ -1,5 +1,7 @@
 #include "node_config.h"
 
+#include "dynaorb/dynamic/dynamic_filter.h"
+
 #include <cstdlib>
 #include <sstream>
 
@@ -108,10 +110,16 @@ NodeConfig read_config(const ros::NodeHandle& pnh) {
   cfg.system.loop_closing = param(pnh, "loop_closing", true);
   cfg.system.localization_only = param(pnh, "localization_only", false);
   cfg.system.mapping.ba_threads = param(pnh, "ba_threads", cfg.system.mapping.ba_threads);
+  // The dynamic-object front end: a preset name (config/dynamic/<name>.yaml of
+  // this package) or a preset file; "off": none.
   cfg.dynamic = param<std::string>(pnh, "dynamic", "off");
-  // Only "off" exists until the dynamic-object front end lands (hook: SystemOptions::dynamic).
-  if (cfg.dynamic != "off")
-    throw InputError("~dynamic: unknown preset '" + cfg.dynamic + "' (available: off)");
+  if (cfg.dynamic != "off") {
+    const bool is_file = cfg.dynamic.find('/') != std::string::npos ||
+                         cfg.dynamic.size() > 5 && cfg.dynamic.compare(cfg.dynamic.size() - 5, 5, ".yaml") == 0;
+    const std::string path = is_file ? cfg.dynamic : std::string(DYNAORB_CONFIG_DIR) + "/dynamic/" + cfg.dynamic + ".yaml";
+    cfg.system.dynamic = dynamic::DynamicFilterOptions::load(path);  // InputError naming the file and key
+    cfg.system.dynamic.validate(n.sensor);
+  }
   std::string vocabulary = param<std::string>(pnh, "vocabulary", "default");
   if (vocabulary == "none") vocabulary.clear();
   cfg.vocabulary_path = vocabulary == "default" ? default_vocabulary_path() : vocabulary;

@@ -293,35 +293,60 @@ bool SlamNode::ensure_system() {
 // ---------------------------------------------------------------- hooks
 
 TrackResult SlamNode::track(const FrameInput& f, const cv::Mat& labels, cv::Mat& exclusion) {
-  // Hook: with the dynamic front end, labels go to System::track_*(..., mask, labels).
-  exclusion = labels.empty() ? cv::Mat() : movable_mask(labels, cfg_.node.movable_ids);
+  // With a dynamic preset the labels go to the System's filter, which decides
+  // what of the movable classes moves; without one, every movable-class pixel
+  // is kept out of tracking (the drop policy).
+  const bool filter = cfg_.system.dynamic.enabled(cfg_.node.sensor);
+  exclusion = labels.empty() || filter ? cv::Mat() : movable_mask(labels, cfg_.node.movable_ids);
+  const cv::Mat to_filter = filter ? labels : cv::Mat();
   if (!labels.empty()) ++counters_.labels_used;
   const double stamp = f.header.stamp.toSec();
+  TrackResult r;
   switch (cfg_.node.sensor) {
-    case Sensor::kMono: return system_->track_mono(f.image, stamp, exclusion);
-    case Sensor::kStereo: return system_->track_stereo(f.image, f.right, stamp, exclusion);
+    case Sensor::kMono: r = system_->track_mono(f.image, stamp, exclusion, to_filter); break;
+    case Sensor::kStereo: r = system_->track_stereo(f.image, f.right, stamp, exclusion, to_filter); break;
     case Sensor::kRGBD: {
       // The System divides depth by DepthMapFactor whatever its type: metres scaled back.
       cv::Mat depth;
       f.depth_m.convertTo(depth, CV_32F, cfg_.settings.camera.depth_map_factor.value_or(1.0));
-      return system_->track_rgbd(f.image, depth, stamp, exclusion);
+      r = system_->track_rgbd(f.image, depth, stamp, exclusion, to_filter);
+      break;
     }
   }
-  return {};
+  // The filter's mask (input pixels) is what the outputs leave out.
+  if (filter && r.rejected == RejectReason::kNone) exclusion = system_->last_dynamic_mask();
+  return r;
 }
 
-cv::Mat SlamNode::dynamic_mask(const FrameInput&, const cv::Mat& exclusion) const {
-  // Hook: System::last_dynamic_mask() once the dynamic front end is in.
-  return exclusion;
-}
+cv::Mat SlamNode::dynamic_mask(const FrameInput&, const cv::Mat& exclusion) const { return exclusion; }
 
 bool SlamNode::dense_view(const FrameInput& f, const cv::Mat& exclusion, DenseView& view) {
   // Hook: System::dense_frame(inpaint) once the dynamic front end is in
   // (colour, depth incl. SGBM depth for stereo, dynamic mask).
-  if (cfg_.node.inpaint)
-    ROS_WARN_ONCE("dynaorb_node: ~cloud/inpaint needs the dynamic front end's dense frames: the masked pixels "
-                  "are left out of the cloud, not inpainted");
   const CameraSettings& c = system_->settings().camera;
+  if (cfg_.node.inpaint && cfg_.node.sensor == Sensor::kRGBD) {
+    // DDL-SLAM's background inpainting: the keyframe's dynamic pixels filled
+    // from the filter's last keyframes; pixels none of them saw have depth 0
+    // and stay out of the cloud.
+    DenseFrame d;
+    {
+      std::lock_guard<std::mutex> lk(system_mutex_);
+      d = system_->dense_frame(true);
+    }
+    if (d.inpainted && !d.depth.empty() && std::abs(d.stamp - f.header.stamp.toSec()) < 1e-6) {
+      view.depth_m = d.depth;
+      if (c.rgb) cv::cvtColor(d.colour, view.colour, cv::COLOR_BGR2RGB);
+      else view.colour = d.colour;
+      view.K = (cv::Mat_<double>(3, 3) << d.fx, 0, d.cx, 0, d.fy, d.cy, 0, 0, 1);
+      view.dist = d.dist;
+      view.exclude = cv::Mat();
+      ++counters_.inpainted_clouds;
+      return true;
+    }
+  } else if (cfg_.node.inpaint) {
+    ROS_WARN_ONCE("dynaorb_node: ~cloud/inpaint works for RGB-D with a ~dynamic preset: the masked pixels "
+                  "are left out of the cloud, not inpainted");
+  }
   cv::Mat K = (cv::Mat_<double>(3, 3) << c.fx, 0, c.cx, 0, c.fy, c.cy, 0, 0, 1);
   view.exclude = exclusion.empty() ? cv::Mat() : exclusion;
   if (cfg_.node.sensor == Sensor::kRGBD) {
@@ -538,7 +563,7 @@ void SlamNode::publish_status(const FrameInput& f, const TrackResult& r, double 
   s.keypoints = r.keypoints;
   s.tracked_points = r.tracked_points;
   s.new_keyframe = r.new_keyframe;
-  s.mask_used = r.mask_used;
+  s.mask_used = r.mask_used || r.labels_used;  // a mask, or labels the dynamic filter used
   s.label_age = label_age;
   s.frame_ms = frame_ms(r);
   {
@@ -628,7 +653,8 @@ std::string SlamNode::stats_json() const {
       << ", \"labels_in\": " << c.labels_in.load() << ", \"labels_unreadable\": " << c.labels_unreadable.load()
       << ", \"labels_used\": " << c.labels_used.load() << ", \"labels_missing\": " << c.labels_missing.load()
       << ", \"labels_stale\": " << c.labels_stale.load() << ", \"tf_failures\": " << c.tf_failures.load()
-      << ", \"clouds\": " << c.clouds.load() << ", \"cloud_failures\": " << c.cloud_failures.load();
+      << ", \"clouds\": " << c.clouds.load() << ", \"cloud_failures\": " << c.cloud_failures.load()
+      << ", \"inpainted_clouds\": " << c.inpainted_clouds.load();
   std::lock_guard<std::mutex> lk(system_mutex_);
   if (system_) {
     const SystemCounters& s = system_->counters();

@@ -59,7 +59,7 @@ struct FrameInput {
 struct NodeCounters {
   std::atomic<long> frames_in{0}, unreadable{0}, waiting_for_camera_info{0};
   std::atomic<long> labels_in{0}, labels_unreadable{0}, labels_used{0}, labels_missing{0}, labels_stale{0};
-  std::atomic<long> tf_failures{0}, clouds{0}, cloud_failures{0};
+  std::atomic<long> tf_failures{0}, clouds{0}, cloud_failures{0}, inpainted_clouds{0};
 };
 
 class SlamNode {

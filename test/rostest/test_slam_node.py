@@ -265,6 +265,13 @@ class SlamNodeTest(unittest.TestCase):
             self.assertEqual(self.stats["labels_in"], 0)
             self.assertFalse(any(s.mask_used for s in self.status))
 
+    def test_inpainted_clouds(self):
+        if not rospy.get_param("~inpainted_clouds", False):
+            return
+        # With a dynamic preset and ~cloud/inpaint, keyframe clouds after the
+        # first keyframe come from DDL-SLAM's background inpainting.
+        self.assertGreater(self.stats["inpainted_clouds"], 0)
+
     def test_dynamic_mask_per_frame(self):
         self.assertEqual([s for s, _, _ in self.masks], [s.header.stamp for s in self.status])
         self.assertTrue(all(e == "mono8" for _, e, _ in self.masks))
