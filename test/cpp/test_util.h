@@ -7,9 +7,26 @@
 #include <random>
 #include <string>
 
+#include "dynaorb/io/settings.h"
+
 namespace dynaorb::test {
 
 namespace fs = std::filesystem;
+
+// A 640x480 RGB-D camera (fx 500, TUM's bf, ThDepth and DepthMapFactor) for
+// System tests on images made in the test.
+inline Settings rgbd_settings() {
+  Settings s;
+  s.camera.fx = s.camera.fy = 500;
+  s.camera.cx = 320;
+  s.camera.cy = 240;
+  s.camera.width = 640;
+  s.camera.height = 480;
+  s.camera.bf = 40;
+  s.camera.th_depth = 40;
+  s.camera.depth_map_factor = 5000;
+  return s;
+}
 
 // ../shared/data beside the repository, or $DYNAORB_SHARED/data.
 inline fs::path shared_data() {

@@ -2,22 +2,12 @@
 
 #include "dynaorb/io/errors.h"
 #include "dynaorb/system.h"
+#include "../test_util.h"
 
 namespace dynaorb {
 namespace {
 
-Settings rgbd_settings() {
-  Settings s;
-  s.camera.fx = s.camera.fy = 500;
-  s.camera.cx = 320;
-  s.camera.cy = 240;
-  s.camera.width = 640;
-  s.camera.height = 480;
-  s.camera.bf = 40;
-  s.camera.th_depth = 40;
-  s.camera.depth_map_factor = 5000;
-  return s;
-}
+using test::rgbd_settings;
 
 TEST(System, RejectsMissingSensorKeys) {
   Settings s = rgbd_settings();

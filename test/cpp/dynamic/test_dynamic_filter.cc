@@ -8,6 +8,7 @@
 #include "dynaorb/features/orb_extractor.h"
 #include "dynaorb/io/errors.h"
 #include "dynaorb/system.h"
+#include "../test_util.h"
 
 namespace dynaorb::dynamic {
 namespace {
@@ -291,18 +292,7 @@ TEST(DynamicFilter, RemembersTheLastKeyframes) {
 
 // ---------------------------------------------------------------- through the System
 
-Settings rgbd_settings() {
-  Settings s;
-  s.camera.fx = s.camera.fy = 500;
-  s.camera.cx = 320;
-  s.camera.cy = 240;
-  s.camera.width = 640;
-  s.camera.height = 480;
-  s.camera.bf = 40;
-  s.camera.th_depth = 40;
-  s.camera.depth_map_factor = 5000;
-  return s;
-}
+using test::rgbd_settings;
 
 cv::Mat texture(int seed) {
   cv::Mat t(480, 640, CV_8UC3);
