@@ -2,11 +2,13 @@
 
 #include <chrono>
 #include <limits>
+#include <map>
 #include <cmath>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "dynaorb/dynamic/inpainting.h"
+#include "dynaorb/dynamic/stereo_depth.h"
 #include "dynaorb/io/errors.h"
 #include "dynaorb/map/frame.h"
 #include "dynaorb/map/map.h"
@@ -108,6 +110,29 @@ struct System::Impl {
   std::unique_ptr<dynamic::DynamicFilter> filter;
   cv::Mat colour, labels;
   cv::Mat unrectify_map;  // input pixel -> rectified pixel (CV_32FC2), for last_dynamic_mask()
+  // Stereo depth by semi-global block matching of the frames dense_frame()
+  // needed (the current one, remembered keyframes), computed once per frame;
+  // keyed by the frame and its stamp, pruned to the frames still remembered.
+  std::map<std::pair<const dynamic::FrameData*, double>, cv::Mat> stereo_depth;
+
+  cv::Mat stereo_depth_of(const dynamic::FrameData& f) {
+    if (!f.depth.empty()) return f.depth;
+    if (sensor != Sensor::kStereo || f.right.empty() || !builder || !(builder->calib()->bf > 0)) return cv::Mat();
+    const auto key = std::make_pair(&f, f.stamp);
+    auto it = stereo_depth.find(key);
+    if (it == stereo_depth.end())
+      it = stereo_depth.emplace(key, dynamic::stereo_depth(f.grey, f.right, builder->calib()->bf,
+                                                           options.dynamic.inpainting.stereo)).first;
+    return it->second;
+  }
+
+  void prune_stereo_depth(const dynamic::FrameData& current) {
+    for (auto it = stereo_depth.begin(); it != stereo_depth.end();) {
+      bool kept = it->first.first == &current;
+      for (const dynamic::KeyFrameData& kf : filter->keyframes()) kept = kept || kf.frame.get() == it->first.first;
+      it = kept ? std::next(it) : stereo_depth.erase(it);
+    }
+  }
   bool dynamic_on() const { return options.dynamic.enabled(sensor); }
 
   Impl(const Settings& s, Sensor k, const SystemOptions& o) : settings(s), sensor(k), options(o) {
@@ -564,7 +589,7 @@ cv::Mat System::last_dynamic_mask() const {
 }
 
 DenseFrame System::dense_frame(bool inpaint) const {
-  const Impl& s = *impl_;
+  Impl& s = *impl_;
   DenseFrame d;
   if (!s.filter || !s.filter->last_frame() || !s.builder) return d;
   const dynamic::FrameData& f = *s.filter->last_frame();
@@ -576,15 +601,30 @@ DenseFrame System::dense_frame(bool inpaint) const {
   d.cy = calib.cy;
   d.dist = calib.dist.empty() ? cv::Mat() : calib.dist.clone();
   d.dynamic = f.dynamic.clone();
+  d.candidates = f.candidates.empty() ? cv::Mat() : f.candidates.clone();
+  d.motion_checked = f.motion_checked;
   // The camera of the tracked pixels in the output world (the first input
   // camera): T_rect_input^-1 * T_cw^-1 (for mono / RGB-D T_rect_input = I).
   if (f.T_cw) d.T_wc = s.T_rect_input.inverse() * f.T_cw->inverse();
+  s.prune_stereo_depth(f);
+  const cv::Mat depth = s.stereo_depth_of(f);  // RGB-D: the sensor's; stereo: a stage's, else SGBM
   if (inpaint && f.T_cw && cv::countNonZero(f.dynamic) > 0) {
+    // Stereo frames get their depth here, not in the tracking thread: only
+    // the frames a dense map asks for pay for block matching.
+    dynamic::FrameData current = f;  // cv::Mat headers: no pixels copied
+    current.depth = depth;
+    std::vector<dynamic::KeyFrameData> keyframes = s.filter->keyframes();
+    for (dynamic::KeyFrameData& kf : keyframes) {
+      if (!kf.frame || !kf.frame->depth.empty()) continue;
+      auto with_depth = std::make_shared<dynamic::FrameData>(*kf.frame);
+      with_depth->depth = s.stereo_depth_of(*kf.frame);
+      kf.frame = std::move(with_depth);
+    }
     const dynamic::InpaintResult in =
-        dynamic::inpaint_background(f, s.filter->keyframes(), calib, s.options.dynamic.inpainting);
+        dynamic::inpaint_background(current, keyframes, calib, s.options.dynamic.inpainting);
     if (!in.colour.empty()) d.colour = in.colour;
     else if (!in.grey.empty()) cv::cvtColor(in.grey, d.colour, cv::COLOR_GRAY2BGR);
-    if (!f.depth.empty()) d.depth = in.depth;
+    if (!depth.empty()) d.depth = in.depth;
     d.inpainted = true;
     d.inpainted_pixels = in.filled_pixels;
   }
@@ -592,7 +632,7 @@ DenseFrame System::dense_frame(bool inpaint) const {
     if (!f.colour.empty()) d.colour = f.colour.clone();
     else cv::cvtColor(f.grey, d.colour, cv::COLOR_GRAY2BGR);
   }
-  if (d.depth.empty() && !f.depth.empty()) d.depth = f.depth.clone();
+  if (d.depth.empty() && !depth.empty()) d.depth = depth.clone();
   return d;
 }
 

@@ -69,8 +69,16 @@ struct TrackResult {
 struct DenseFrame {
   double stamp = 0;
   cv::Mat colour;    // CV_8UC3 BGR; the grey image as BGR when the input was grey
-  cv::Mat depth;     // CV_32FC1 metres, 0 = none (RGB-D depth, or stereo depth a stage computed); may be empty
+  // CV_32FC1 metres, 0 = none: RGB-D depth; for stereo, a stage's disparity
+  // depth or else semi-global block matching (Dynamic.inpainting.stereo_*).
+  cv::Mat depth;
   cv::Mat dynamic;   // CV_8UC1 255 = dynamic; zeros when the filter is off
+  // The movable-class regions of the labels (CV_8UC1 255), empty without
+  // labels; and whether the filter had a previous frame to check them for
+  // motion. Unchecked (the first frame, the first after a reset), the
+  // regions it did not mark are unverified, not known to be static.
+  cv::Mat candidates;
+  bool motion_checked = false;
   // The camera of these pixels in the world of trajectory(); empty when the
   // frame was not tracked. For rectified stereo: the rectified left camera.
   std::optional<Pose> T_wc;
@@ -179,8 +187,10 @@ class System {
   // (un-rectified for stereo); empty when the filter is off or before a frame.
   cv::Mat last_dynamic_mask() const;
   // The last frame for a dense map; inpaint: its dynamic pixels filled with
-  // the background seen by the remembered keyframes (DDL-SLAM Sec. III-D).
-  // Empty colour before a frame was processed.
+  // the background seen by the remembered keyframes (DDL-SLAM Sec. III-E).
+  // Stereo depth is computed here (semi-global block matching, once per
+  // frame and remembered keyframe), not in the tracking thread. Empty colour
+  // before a frame was processed. Not to be called concurrently with track_*.
   DenseFrame dense_frame(bool inpaint = false) const;
   bool dynamic_filter_enabled() const;
 

@@ -270,6 +270,7 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
   std::shared_ptr<const FrameData> previous =
       previous_ && previous_->grey.size() == size ? previous_ : std::shared_ptr<const FrameData>();
 
+  current.motion_checked = previous != nullptr;
   Context ctx{sensor_, calib_, current, previous, cv::Mat::zeros(size, CV_8UC1), nullptr, nullptr,
               T_cw_predicted, &keyframes_};
   std::vector<TrackedPoint> tracked;

@@ -14,6 +14,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
+#include <string>
 #include <opencv2/imgproc.hpp>
 
 #include "file_node_options.h"
@@ -29,6 +31,18 @@ void InpaintOptions::read(const cv::FileNode& node) {
   read_option(node, "max_depth_m", max_depth_m);
   read_option(node, "keyframe_mask_margin_px", keyframe_mask_margin_px);
   read_option(node, "background_behind_object", background_behind_object);
+  read_option(node, "stereo_num_disparities", stereo.num_disparities);
+  read_option(node, "stereo_block_size", stereo.block_size);
+  read_option(node, "stereo_uniqueness_ratio", stereo.uniqueness_ratio);
+  read_option(node, "stereo_speckle_window", stereo.speckle_window);
+  read_option(node, "stereo_speckle_range", stereo.speckle_range);
+  read_option(node, "stereo_disp12_max_diff", stereo.disp12_max_diff);
+  read_option(node, "stereo_three_way", stereo.three_way);
+  try {
+    stereo.validate();
+  } catch (const std::invalid_argument& e) {
+    throw InputError(std::string("Dynamic.inpainting: ") + e.what());
+  }
 }
 
 namespace {
@@ -152,6 +166,11 @@ InpaintResult inpaint_background(const FrameData& current, const std::vector<Key
     cv::Mat kf_mask;
     if (!f.dynamic.empty() && f.dynamic.type() == CV_8UC1 && f.dynamic.size() == size) {
       kf_mask = f.dynamic != 0;
+      // A keyframe without a previous frame (the first, the first after a
+      // reset) could not check its movable-class regions for motion: they
+      // may be a mover, so they are no background source.
+      if (!f.motion_checked && !f.candidates.empty() && f.candidates.size() == size)
+        kf_mask |= f.candidates != 0;
       if (o.keyframe_mask_margin_px > 0) {
         const int m = o.keyframe_mask_margin_px;
         cv::dilate(kf_mask, kf_mask, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * m + 1, 2 * m + 1)));

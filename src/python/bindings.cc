@@ -460,12 +460,16 @@ PYBIND11_MODULE(_core, m) {
         out["dist"] = to_numpy(d.dist);
         out["inpainted"] = d.inpainted;
         out["inpainted_pixels"] = d.inpainted_pixels;
+        out["candidates"] = to_numpy(d.candidates);
+        out["motion_checked"] = d.motion_checked;
         return out;
       }, py::arg("inpaint") = false,
          "The last frame for a dense map: dict(stamp, colour BGR, depth (metres or None), dynamic mask,\n"
-         "T_wc (4x4 or None when not tracked), K, dist, inpainted, inpainted_pixels) in the tracked\n"
-         "image's pixels (rectified for stereo); inpaint: dynamic pixels filled with the background the\n"
-         "remembered keyframes saw. None when the filter is off or before a frame.")
+         "T_wc (4x4 or None when not tracked), K, dist, inpainted, inpainted_pixels, candidates (the\n"
+         "labels' movable-class regions or None), motion_checked (False: no previous frame, so the\n"
+         "candidates the filter did not mark are unverified)) in the tracked image's pixels (rectified\n"
+         "for stereo; stereo depth by semi-global block matching); inpaint: dynamic pixels filled with\n"
+         "the background the remembered keyframes saw. None when the filter is off or before a frame.")
       .def("reset", &System::reset, "Drops the map, the keyframe database and the trajectory.")
       .def("save_map", [](System& s, const py::object& path) {
         const std::string p = path_of(path);

@@ -171,6 +171,13 @@ NodeConfig read_config(const ros::NodeHandle& pnh) {
   n.sgbm.uniqueness_ratio = param(pnh, "sgbm/uniqueness_ratio", n.sgbm.uniqueness_ratio);
   n.sgbm.speckle_window = param(pnh, "sgbm/speckle_window", n.sgbm.speckle_window);
   n.sgbm.speckle_range = param(pnh, "sgbm/speckle_range", n.sgbm.speckle_range);
+  try {
+    n.sgbm.validate();
+  } catch (const std::invalid_argument& e) {
+    throw InputError(std::string("~sgbm/*: ") + e.what());
+  }
+  cfg.system.dynamic.inpainting.stereo = n.sgbm;  // the inpainted stereo clouds use the same depth
+  n.drop_unchecked_movable = param(pnh, "cloud/drop_unchecked_movable", n.drop_unchecked_movable);
   return cfg;
 }
 

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "dynaorb/dynamic/stereo_depth.h"
 #include "dynaorb/system.h"
 #include "support/dense_cloud.h"
 
@@ -53,11 +54,15 @@ struct NodeOptions {
   bool publish_cloud = true;             // per keyframe, camera frame
   bool publish_unfiltered_cloud = false; // also cloud_unfiltered: the same without the mask (diagnostics)
   // Masked pixels filled from earlier keyframes (DDL-SLAM's background
-  // inpainting): comes with System::dense_frame(inpaint); until then the
-  // masked pixels are left out and a warning says so.
+  // inpainting, System::dense_frame(true)); needs a ~dynamic preset. Without
+  // one the masked pixels are left out and a warning says so.
   bool inpaint = false;
+  // Keyframes whose movable-class regions the filter could not check for
+  // motion (no previous frame: the first keyframe, the first after a reset)
+  // leave those regions out of their cloud: unverified is not static.
+  bool drop_unchecked_movable = true;
   DenseCloudOptions cloud;
-  StereoDepthOptions sgbm;
+  dynamic::StereoDepthOptions sgbm;  // stereo depth for clouds (and for inpainting, into the filter's options)
 };
 
 struct NodeConfig {

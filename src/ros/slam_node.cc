@@ -54,7 +54,7 @@ cv::Mat as_mat3(const cv::Mat& m) {
 }  // namespace
 
 SlamNode::SlamNode(ros::NodeHandle nh, ros::NodeHandle pnh)
-    : nh_(nh), pnh_(pnh), cfg_(read_config(pnh)), cloud_builder_(cfg_.node.cloud), stereo_depth_(cfg_.node.sgbm) {
+    : nh_(nh), pnh_(pnh), cfg_(read_config(pnh)), cloud_builder_(cfg_.node.cloud) {
   const NodeOptions& n = cfg_.node;
   tf_listener_ = std::make_unique<tf2_ros::TransformListener>(tf_buffer_);
   if (!cfg_.vocabulary_path.empty()) {
@@ -320,57 +320,73 @@ TrackResult SlamNode::track(const FrameInput& f, const cv::Mat& labels, cv::Mat&
 
 cv::Mat SlamNode::dynamic_mask(const FrameInput&, const cv::Mat& exclusion) const { return exclusion; }
 
-bool SlamNode::dense_view(const FrameInput& f, const cv::Mat& exclusion, DenseView& view) {
-  // Hook: System::dense_frame(inpaint) once the dynamic front end is in
-  // (colour, depth incl. SGBM depth for stereo, dynamic mask).
+bool SlamNode::dense_view(const FrameInput& f, const cv::Mat& exclusion, bool filtered, DenseView& view) {
   const CameraSettings& c = system_->settings().camera;
-  if (cfg_.node.inpaint && cfg_.node.sensor == Sensor::kRGBD) {
-    // DDL-SLAM's background inpainting: the keyframe's dynamic pixels filled
-    // from the filter's last keyframes; pixels none of them saw have depth 0
-    // and stay out of the cloud.
+  const Sensor sensor = cfg_.node.sensor;
+  const bool filter = filtered && cfg_.system.dynamic.enabled(sensor);
+  const bool inpaint = cfg_.node.inpaint && filter && sensor != Sensor::kMono;
+  if (filtered && cfg_.node.inpaint && !inpaint)
+    ROS_WARN_ONCE("dynaorb_node: ~cloud/inpaint works for RGB-D and stereo with a ~dynamic preset: the masked "
+                  "pixels are left out of the cloud, not inpainted");
+  // Points of the rectified camera into the input camera: x_cam = R_l^T x_rect.
+  auto rectified_to_input = [this, &view] {
+    const cv::Mat R = as_mat3(cfg_.settings.rectification.R_l);
+    for (int r = 0; r < 3; ++r)
+      for (int k = 0; k < 3; ++k) view.R_cam_depth(r, k) = static_cast<float>(R.at<double>(k, r));
+  };
+  cv::Mat unchecked;  // movable-class regions the filter had no previous frame to check (tracked pixels)
+  if (filter) {
     DenseFrame d;
     {
       std::lock_guard<std::mutex> lk(system_mutex_);
-      d = system_->dense_frame(true);
+      d = system_->dense_frame(inpaint);
     }
-    if (d.inpainted && !d.depth.empty() && std::abs(d.stamp - f.header.stamp.toSec()) < 1e-6) {
-      view.depth_m = d.depth;
-      if (c.rgb) cv::cvtColor(d.colour, view.colour, cv::COLOR_BGR2RGB);
-      else view.colour = d.colour;
-      view.K = (cv::Mat_<double>(3, 3) << d.fx, 0, d.cx, 0, d.fy, d.cy, 0, 0, 1);
-      view.dist = d.dist;
-      view.exclude = cv::Mat();
-      ++counters_.inpainted_clouds;
-      return true;
+    if (std::abs(d.stamp - f.header.stamp.toSec()) < 1e-6) {
+      if (!d.motion_checked && cfg_.node.drop_unchecked_movable && !d.candidates.empty() &&
+          cv::countNonZero(d.candidates) > 0) {
+        unchecked = d.candidates;
+        ++counters_.unchecked_clouds;
+      }
+      if (d.inpainted && !d.depth.empty()) {
+        // DDL-SLAM's background inpainting: the keyframe's dynamic pixels
+        // filled from the filter's last keyframes; pixels none of them saw
+        // have depth 0 and stay out of the cloud.
+        view.depth_m = d.depth;
+        if (c.rgb) cv::cvtColor(d.colour, view.colour, cv::COLOR_BGR2RGB);
+        else view.colour = d.colour;
+        view.K = (cv::Mat_<double>(3, 3) << d.fx, 0, d.cx, 0, d.fy, d.cy, 0, 0, 1);
+        view.dist = d.dist;
+        view.exclude = unchecked;
+        if (sensor == Sensor::kStereo && cfg_.node.rectify) rectified_to_input();
+        ++counters_.inpainted_clouds;
+        return true;
+      }
     }
-  } else if (cfg_.node.inpaint) {
-    ROS_WARN_ONCE("dynaorb_node: ~cloud/inpaint works for RGB-D with a ~dynamic preset: the masked pixels "
-                  "are left out of the cloud, not inpainted");
   }
   cv::Mat K = (cv::Mat_<double>(3, 3) << c.fx, 0, c.cx, 0, c.fy, c.cy, 0, 0, 1);
-  view.exclude = exclusion.empty() ? cv::Mat() : exclusion;
-  if (cfg_.node.sensor == Sensor::kRGBD) {
+  view.exclude = exclusion.empty() || !filtered ? cv::Mat() : exclusion;
+  if (sensor == Sensor::kRGBD) {
+    if (!unchecked.empty()) view.exclude = view.exclude.empty() ? unchecked : (view.exclude | unchecked);
     view.depth_m = f.depth_m;
     view.colour = f.image;
     view.K = K;
     view.dist = c.dist;
     return true;
   }
-  if (cfg_.node.sensor != Sensor::kStereo || !c.bf) return false;
+  if (sensor != Sensor::kStereo || !c.bf) return false;
   cv::Mat left = f.image, right = f.right;
   view.K = K;
   if (cfg_.node.rectify) {
     const StereoRectification& q = cfg_.settings.rectification;
     cv::remap(f.image, left, rect_l1_, rect_l2_, cv::INTER_LINEAR);
     cv::remap(f.right, right, rect_r1_, rect_r2_, cv::INTER_LINEAR);
-    if (!exclusion.empty()) cv::remap(exclusion, view.exclude, rect_l1_, rect_l2_, cv::INTER_NEAREST);
+    if (!view.exclude.empty()) cv::remap(exclusion, view.exclude, rect_l1_, rect_l2_, cv::INTER_NEAREST);
     view.K = as_mat3(q.P_l.colRange(0, 3));
-    // Points of the rectified camera into the input camera: x_cam = R_l^T x_rect.
-    const cv::Mat R = as_mat3(q.R_l);
-    for (int r = 0; r < 3; ++r)
-      for (int k = 0; k < 3; ++k) view.R_cam_depth(r, k) = static_cast<float>(R.at<double>(k, r));
+    rectified_to_input();
   }
-  view.depth_m = stereo_depth_.depth(left, right, *c.bf);
+  if (!unchecked.empty() && unchecked.size() == left.size())
+    view.exclude = view.exclude.empty() ? unchecked : (view.exclude | unchecked);
+  view.depth_m = dynamic::stereo_depth(left, right, *c.bf, cfg_.node.sgbm);
   view.colour = left;
   return !view.depth_m.empty();
 }
@@ -527,18 +543,19 @@ void SlamNode::publish_keyframe_outputs(const FrameInput& f, const cv::Mat& excl
     pub_map_points_.publish(msg);
   }
   if (!pub_cloud_) return;
-  DenseView view;
-  if (!dense_view(f, exclusion, view)) {
-    ++counters_.cloud_failures;
-    ROS_WARN_THROTTLE(5.0, "dynaorb_node: no depth for the keyframe cloud");
-    return;
-  }
-  auto publish = [&](ros::Publisher& pub, const cv::Mat& exclude) {
-    DenseCloud cloud = cloud_builder_.build(view.depth_m, view.colour, cfg_.settings.camera.rgb, exclude, view.K, view.dist);
+  auto publish = [&](ros::Publisher& pub, bool filtered) {
+    DenseView view;
+    if (!dense_view(f, exclusion, filtered, view)) {
+      ++counters_.cloud_failures;
+      ROS_WARN_THROTTLE(5.0, "dynaorb_node: no depth for the keyframe cloud");
+      return false;
+    }
+    DenseCloud cloud =
+        cloud_builder_.build(view.depth_m, view.colour, cfg_.settings.camera.rgb, view.exclude, view.K, view.dist);
     if (!cloud_builder_.error().empty()) {
       ++counters_.cloud_failures;
       ROS_WARN_THROTTLE(5.0, "dynaorb_node: keyframe cloud skipped: %s", cloud_builder_.error().c_str());
-      return;
+      return false;
     }
     if (!view.R_cam_depth.isIdentity())
       for (Eigen::Vector3f& p : cloud.xyz) p = view.R_cam_depth * p;
@@ -546,10 +563,11 @@ void SlamNode::publish_keyframe_outputs(const FrameInput& f, const cv::Mat& excl
     msg.header.stamp = f.header.stamp;
     msg.header.frame_id = camera_frame_;
     pub.publish(msg);
+    return true;
   };
-  publish(pub_cloud_, view.exclude);
-  ++counters_.clouds;
-  if (pub_cloud_unfiltered_) publish(pub_cloud_unfiltered_, cv::Mat());
+  if (publish(pub_cloud_, true)) ++counters_.clouds;
+  // The same keyframe as the camera saw it: no mask, no inpainting.
+  if (pub_cloud_unfiltered_) publish(pub_cloud_unfiltered_, false);
 }
 
 void SlamNode::publish_status(const FrameInput& f, const TrackResult& r, double label_age) {
@@ -654,7 +672,8 @@ std::string SlamNode::stats_json() const {
       << ", \"labels_used\": " << c.labels_used.load() << ", \"labels_missing\": " << c.labels_missing.load()
       << ", \"labels_stale\": " << c.labels_stale.load() << ", \"tf_failures\": " << c.tf_failures.load()
       << ", \"clouds\": " << c.clouds.load() << ", \"cloud_failures\": " << c.cloud_failures.load()
-      << ", \"inpainted_clouds\": " << c.inpainted_clouds.load();
+      << ", \"inpainted_clouds\": " << c.inpainted_clouds.load()
+      << ", \"unchecked_clouds\": " << c.unchecked_clouds.load();
   std::lock_guard<std::mutex> lk(system_mutex_);
   if (system_) {
     const SystemCounters& s = system_->counters();

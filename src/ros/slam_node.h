@@ -60,6 +60,8 @@ struct NodeCounters {
   std::atomic<long> frames_in{0}, unreadable{0}, waiting_for_camera_info{0};
   std::atomic<long> labels_in{0}, labels_unreadable{0}, labels_used{0}, labels_missing{0}, labels_stale{0};
   std::atomic<long> tf_failures{0}, clouds{0}, cloud_failures{0}, inpainted_clouds{0};
+  // Keyframe clouds that left out movable-class regions the filter could not check (no previous frame).
+  std::atomic<long> unchecked_clouds{0};
 };
 
 class SlamNode {
@@ -98,7 +100,8 @@ class SlamNode {
     cv::Mat depth_m, colour, exclude, K, dist;
     Eigen::Matrix3f R_cam_depth = Eigen::Matrix3f::Identity();
   };
-  bool dense_view(const FrameInput& frame, const cv::Mat& exclusion, DenseView& view);
+  // filtered: the exclusion (and with ~cloud/inpaint the inpainting) applied; else the raw view.
+  bool dense_view(const FrameInput& frame, const cv::Mat& exclusion, bool filtered, DenseView& view);
   // ----
 
   void publish_pose(const FrameInput& frame, const Pose& T_wc, const std::string& method);
@@ -153,7 +156,6 @@ class SlamNode {
   long last_corrections_ = 0;
 
   DenseCloudBuilder cloud_builder_;
-  StereoDepth stereo_depth_;
   cv::Mat rect_l1_, rect_l2_, rect_r1_, rect_r2_;  // raw stereo -> rectified, for SGBM
 
   // Services on their own queue and thread: a long track call does not block them.

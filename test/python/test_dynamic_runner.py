@@ -92,10 +92,10 @@ def test_stereo_full_preset(tmp_path, synth_stereo):
     stats = run_dataset(RunOptions(kind="kitti", path=str(seq), out=str(tmp_path / "out"), dynamic="full",
                                    labels=str(seq / "labels"), save_masks=str(masks), progress=False))
     dyn = stats["dynamic_filter"]
-    assert dyn["stages"] == ["semantic", "dm", "li"]
+    assert dyn["stages"] == ["semantic", "dm", "stdyn"]
     assert dyn["stage_failures"] == 0
     assert len(list(masks.iterdir())) == stats["frames"] == 6
-    assert "dynamic.li" in dyn["summary"]["stage_ms_median"]
+    assert "dynamic.stdyn" in dyn["summary"]["stage_ms_median"]
 
 
 def test_cli_dynamic_run_and_errors(tmp_path, synth_rgbd):
@@ -147,6 +147,8 @@ def test_bindings_labels_mask_and_dense_frame(synth_rgbd):
     d = system.dense_frame()
     assert d["colour"].shape == (240, 320, 3) and d["depth"].dtype == np.float32
     assert d["T_wc"].shape == (4, 4) and d["K"][0, 0] == cfg.fx and not d["inpainted"]
+    # The first frame: nothing to judge motion by, so its movable regions are unchecked.
+    assert d["motion_checked"] is False and np.array_equal(d["candidates"] > 0, labels == 15)
     assert system.counters()["labels_dropped"] == 0
     system.track_rgbd(rgb, depth, 2.0, labels=np.zeros((10, 10), np.uint8))
     assert system.counters()["labels_dropped"] == 1

@@ -93,36 +93,6 @@ TEST(DenseCloud, BadInputGivesAnEmptyCloudAndAReason) {
   EXPECT_TRUE(b.build(cv::Mat(), cv::Mat(), true, cv::Mat(), intrinsics(), cv::Mat()).xyz.empty());
 }
 
-TEST(StereoDepth, RecoversAKnownDisparity) {
-  // A textured plane seen with a constant disparity of 20 px: depth = bf / 20.
-  cv::Mat right(120, 240, CV_8UC1);
-  cv::RNG rng(3);
-  rng.fill(right, cv::RNG::UNIFORM, 0, 255);
-  cv::GaussianBlur(right, right, cv::Size(3, 3), 0.8);
-  cv::Mat left = cv::Mat::zeros(right.size(), CV_8UC1);
-  right(cv::Rect(0, 0, 220, 120)).copyTo(left(cv::Rect(20, 0, 220, 120)));  // x_left = x_right + 20
-  StereoDepthOptions o;
-  o.num_disparities = 64;
-  const double bf = 40.0;
-  const cv::Mat depth = StereoDepth(o).depth(left, right, bf);
-  ASSERT_EQ(depth.type(), CV_32FC1);
-  std::vector<float> valid;
-  for (int v = 10; v < 110; ++v)
-    for (int u = 90; u < 230; ++u)
-      if (depth.at<float>(v, u) > 0) valid.push_back(depth.at<float>(v, u));
-  ASSERT_GT(valid.size(), 100u * 140u * 0.8);
-  std::nth_element(valid.begin(), valid.begin() + valid.size() / 2, valid.end());
-  EXPECT_NEAR(valid[valid.size() / 2], bf / 20.0, 0.02);
-}
-
-TEST(StereoDepth, BadPairsGiveNothing) {
-  StereoDepth s;
-  EXPECT_TRUE(s.depth(cv::Mat(), cv::Mat(), 40.0).empty());
-  EXPECT_TRUE(s.depth(cv::Mat(10, 10, CV_8UC1), cv::Mat(10, 12, CV_8UC1), 40.0).empty());
-  EXPECT_TRUE(s.depth(cv::Mat(10, 10, CV_32FC1), cv::Mat(10, 10, CV_32FC1), 40.0).empty());
-  EXPECT_TRUE(s.depth(cv::Mat(10, 10, CV_8UC1), cv::Mat(10, 10, CV_8UC1), 0.0).empty());
-}
-
 TEST(MovableMask, MarksOnlyMovableIds) {
   cv::Mat labels = (cv::Mat_<std::uint8_t>(1, 5) << 0, 15, 7, 9, 15);
   const cv::Mat m = movable_mask(labels, {7, 15});

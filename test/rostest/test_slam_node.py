@@ -57,9 +57,26 @@ def prepare_bag(kind: str, source: str, bag: pathlib.Path, synth: bool, movers: 
         from dynaorb.synth.generate import SynthConfig, generate
 
         generate(source, SynthConfig(sensor="rgbd" if kind == "tum" else "stereo", movers=movers, frames=frames))
-        labels = str(pathlib.Path(source) / "labels") if kind == "tum" else None
+        sequence = synth_sequence(kind, source)
+        labels = str(sequence / "labels")
+        source = str(sequence)
     write_dataset_bag(BagWriteOptions(kind=kind, path=source, out=str(bag), labels=labels))
     done.write_text(recipe)
+
+
+def synth_sequence(kind: str, source: str) -> pathlib.Path:
+    """The frames of a `dynaorb synth` folder: TUM layout at its root, KITTI layout in sequences/00."""
+    return pathlib.Path(source) if kind == "tum" else pathlib.Path(source) / "sequences" / "00"
+
+
+def synth_ground_truth(kind: str, source: str) -> np.ndarray:
+    """(N, 4, 4) ground-truth poses of a `dynaorb synth` folder (the first camera at the origin)."""
+    if kind == "tum":
+        from dynaorb.evaluation import load_trajectory
+
+        return load_trajectory(pathlib.Path(source) / "groundtruth.txt").poses_se3
+    rows = np.loadtxt(pathlib.Path(source) / "poses" / "00.txt").reshape(-1, 3, 4)
+    return np.array([np.vstack([r, [0, 0, 0, 1]]) for r in rows])
 
 
 def quaternion_matrix(q) -> np.ndarray:
@@ -309,7 +326,7 @@ class SlamNodeTest(unittest.TestCase):
             self.skipTest("no synthetic ground truth")
         self.assertIn("/raw", self.octomaps, "the unfiltered octomap published nothing")
         summary = json.loads((pathlib.Path(self.source) / "synth.json").read_text())
-        gt = np.loadtxt(pathlib.Path(self.source) / "groundtruth.txt")
+        gt = synth_ground_truth(self.kind, self.source)
         duration = summary["duration_s"]
         res = float(rospy.get_param("~octomap_resolution"))
         # map (first base frame) -> room: room = T0 * world, world = B^-1 * map (B: base <- camera).
@@ -318,7 +335,7 @@ class SlamNodeTest(unittest.TestCase):
         from dynaorb.synth.scene import CameraPath
 
         T0 = CameraPath().pose(0.0)
-        self.assertTrue(np.allclose(gt[0, 1:4], 0.0))
+        self.assertTrue(np.allclose(gt[0][:3, 3], 0.0))
         map_to_room = T0 @ np.linalg.inv(B)
         statics = [o for o in summary["objects"] if not o["moving"]]
         movers = [o for o in summary["objects"] if o["moving"]]

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "dynaorb/dynamic/stage.h"
+#include "dynaorb/dynamic/stereo_depth.h"
 #include "dynaorb/map/calibration.h"
 
 namespace dynaorb::dynamic {
@@ -47,6 +48,12 @@ struct InpaintOptions {
   // object that a keyframe's mask missed, which otherwise "fill" the object
   // with itself. A static pixel wrongly marked dynamic then stays empty.
   bool background_behind_object = true;
+  // Stereo has no depth of its own: System::dense_frame(true) computes it
+  // (current frame and remembered keyframes, each once) by semi-global
+  // block matching with these options. Keys: stereo_num_disparities,
+  // stereo_block_size, stereo_uniqueness_ratio, stereo_speckle_window,
+  // stereo_speckle_range, stereo_disp12_max_diff, stereo_three_way.
+  StereoDepthOptions stereo;
 
   // Missing keys keep their defaults; keys are the member names.
   void read(const cv::FileNode& node);

@@ -43,6 +43,11 @@ struct FrameData {
   // T_camera_world from SLAM once the frame is tracked (empty before, or when lost).
   std::optional<Eigen::Isometry3d> T_cw;
   cv::Mat dynamic;  // CV_8UC1 final dynamic mask of this frame (255 = dynamic), set by the filter
+  // Set by the filter: a previous frame was there to judge motion against.
+  // When false (the first frame, the first after a reset) the geometric
+  // stages could not check the movable-class regions, so what they left
+  // unmarked is unverified rather than static.
+  bool motion_checked = false;
 };
 
 // A point followed from the previous frame into the current one: shared

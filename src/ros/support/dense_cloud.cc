@@ -93,39 +93,6 @@ DenseCloud DenseCloudBuilder::build(const cv::Mat& depth_m, const cv::Mat& colou
   return cloud;
 }
 
-StereoDepth::StereoDepth(const StereoDepthOptions& options) : options_(options) {
-  options_.num_disparities = std::max(16, (options_.num_disparities + 15) / 16 * 16);
-  options_.block_size = std::max(1, options_.block_size | 1);
-}
-
-cv::Mat StereoDepth::depth(const cv::Mat& left_in, const cv::Mat& right_in, double bf) const {
-  if (left_in.empty() || right_in.empty() || left_in.size() != right_in.size() || left_in.depth() != CV_8U ||
-      !(bf > 0.0))
-    return {};
-  cv::Mat left, right;
-  if (left_in.channels() == 3) cv::cvtColor(left_in, left, cv::COLOR_BGR2GRAY);
-  else if (left_in.channels() == 1) left = left_in;
-  else return {};
-  if (right_in.channels() == 3) cv::cvtColor(right_in, right, cv::COLOR_BGR2GRAY);
-  else if (right_in.channels() == 1) right = right_in;
-  else return {};
-  const int b = options_.block_size;
-  auto sgbm = cv::StereoSGBM::create(0, options_.num_disparities, b, 8 * b * b, 32 * b * b,
-                                     options_.disp12_max_diff, 0, options_.uniqueness_ratio,
-                                     options_.speckle_window, options_.speckle_range,
-                                     options_.three_way ? cv::StereoSGBM::MODE_SGBM_3WAY : cv::StereoSGBM::MODE_SGBM);
-  cv::Mat disparity16;
-  sgbm->compute(left, right, disparity16);  // fixed point, 4 fractional bits
-  cv::Mat depth(left.size(), CV_32FC1, cv::Scalar(0.0f));
-  for (int v = 0; v < depth.rows; ++v) {
-    const std::int16_t* dp = disparity16.ptr<std::int16_t>(v);
-    float* out = depth.ptr<float>(v);
-    for (int u = 0; u < depth.cols; ++u)
-      if (dp[u] > 0) out[u] = static_cast<float>(bf * 16.0 / dp[u]);
-  }
-  return depth;
-}
-
 cv::Mat movable_mask(const cv::Mat& labels, const std::vector<int>& movable_ids) {
   if (labels.empty() || labels.channels() != 1 || (labels.depth() != CV_8U && labels.depth() != CV_16U)) return {};
   cv::Mat mask(labels.size(), CV_8UC1, cv::Scalar(0));

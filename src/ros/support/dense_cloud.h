@@ -4,8 +4,8 @@
 // the image, minus the pixels the dynamic mask marks. STDyn-SLAM (Sec. III-D)
 // builds its local cloud the same way from the left image, the segmentation
 // and a depth image that its camera node computes from the stereo pair; for a
-// stereo camera without a depth topic, StereoDepth does that here with
-// OpenCV's semi-global block matching.
+// stereo camera without a depth topic, dynamic::stereo_depth (the core's
+// semi-global block matching) does that.
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
@@ -49,32 +49,6 @@ class DenseCloudBuilder {
   std::string error_;
   cv::Mat rays_;  // CV_32FC2: normalised (x/z, y/z) per pixel
   cv::Mat rays_K_, rays_dist_;
-};
-
-// OpenCV's semi-global block matching (Hirschmüller 2008) on a rectified
-// pair. No paper of ours fixes its parameters (STDyn-SLAM's camera node and
-// Li et al. 2021 only name SGBM): the defaults are OpenCV's recommended
-// smoothness terms P1 = 8 * block^2, P2 = 32 * block^2 on grey images.
-struct StereoDepthOptions {
-  int num_disparities = 128;  // multiple of 16: nearest depth bf / 128
-  int block_size = 5;         // odd
-  int uniqueness_ratio = 10;  // percent margin of the best cost over the second
-  int speckle_window = 100;   // pixels of a disparity blob treated as speckle
-  int speckle_range = 2;      // disparity variation inside a blob (x16 internally)
-  int disp12_max_diff = 1;    // left-right consistency [px]
-  bool three_way = true;      // MODE_SGBM_3WAY: OpenCV's faster variant
-};
-
-class StereoDepth {
- public:
-  explicit StereoDepth(const StereoDepthOptions& options = {});
-  // Metres (32FC1, 0 where no disparity) of the left image; bf = baseline * fx.
-  // Grey or BGR 8-bit images of the same size; otherwise an empty Mat.
-  cv::Mat depth(const cv::Mat& left, const cv::Mat& right, double bf) const;
-  const StereoDepthOptions& options() const { return options_; }
-
- private:
-  StereoDepthOptions options_;
 };
 
 // The exclusion mask of a label image: 255 where the label is one of the

@@ -435,7 +435,9 @@ TEST(SystemDynamic, StereoMaskComesBackInInputPixels) {
   EXPECT_GT(overlap, 0.9);
   const DenseFrame d = sys.dense_frame(false);
   EXPECT_EQ(d.colour.size(), size);
-  EXPECT_TRUE(d.depth.empty());
+  // Stereo depth by block matching, in the rectified image's pixels.
+  EXPECT_EQ(d.depth.type(), CV_32FC1);
+  EXPECT_EQ(d.depth.size(), d.colour.size());
 }
 
 }  // namespace

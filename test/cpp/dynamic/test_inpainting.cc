@@ -56,6 +56,8 @@ std::shared_ptr<FrameData> make_frame(long id, const std::optional<Eigen::Vector
   f->depth = rv.depth;
   f->T_cw = T_cw;
   f->dynamic = mask_box ? cv::Mat(rv.labels == 15) : cv::Mat(rv.labels.size(), CV_8UC1, cv::Scalar(0));
+  f->candidates = rv.labels == 15;  // the box is of a movable class
+  f->motion_checked = true;
   return f;
 }
 
@@ -157,6 +159,32 @@ TEST(Inpainting, AKeyframeMaskThatMissedTheBoxDoesNotPaintItBack) {
   o.background_behind_object = false;
   const InpaintResult without = inpaint_background(c.current, c.keyframes, *c.calib, o);
   EXPECT_GT(without.filled_fraction, 0.5);
+}
+
+TEST(Inpainting, UncheckedMovableRegionsOfAKeyframeAreNoSource) {
+  // The keyframes' masks are empty because they had no previous frame to
+  // judge motion by: their movable-class regions (the box) must not be
+  // painted in as background.
+  const auto ahead = [](int k) { return std::optional<Eigen::Vector3d>({0.04 * k, 0.1, 2.0 + 0.06 * k}); };
+  Case c = make_case(ahead, false);
+  InpaintOptions o;
+  o.background_behind_object = false;  // only the candidates keep the box out
+  for (KeyFrameData& kf : c.keyframes) {
+    auto f = std::make_shared<FrameData>(*kf.frame);
+    f->motion_checked = false;
+    kf.frame = f;
+  }
+  const InpaintResult unchecked = inpaint_background(c.current, c.keyframes, *c.calib, o);
+  for (KeyFrameData& kf : c.keyframes) {
+    auto f = std::make_shared<FrameData>(*kf.frame);
+    f->motion_checked = true;
+    kf.frame = f;
+  }
+  const InpaintResult checked = inpaint_background(c.current, c.keyframes, *c.calib, o);
+  EXPECT_GT(checked.filled_fraction, 0.5);  // "checked" and unmarked: taken as background
+  const auto [mae, depth_err] = errors(unchecked, c.background);
+  EXPECT_LT(depth_err, 0.05);  // what was filled is the wall behind, not the box
+  EXPECT_LT(unchecked.filled_fraction, checked.filled_fraction);
 }
 
 TEST(Inpainting, DistortedImagesAreWarpedThroughTheLens) {
