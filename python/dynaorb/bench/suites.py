@@ -70,14 +70,14 @@ TUM_FRAGMENT = "tum/rgbd_dataset_freiburg3_walking_xyz_fragment"
 
 
 def synth_sequence(sensor: str, movers: int, root: pathlib.Path, frames: int = SYNTH_FRAMES,
-                   seed: int = SYNTH_SEED, width: int = 640, height: int = 480) -> Sequence:
-    """A synthetic sequence under root (rendered by `ensure_rendered`)."""
-    folder = root / f"{sensor}_m{movers}_f{frames}_s{seed}_{width}x{height}"
+                   seed: int = SYNTH_SEED, width: int = 640, height: int = 480, fx: float | None = None) -> Sequence:
+    """A synthetic sequence under root (rendered by `ensure_rendered`); fx None: the renderer's default."""
+    folder = root / (f"{sensor}_m{movers}_f{frames}_s{seed}_{width}x{height}" + (f"_fx{fx:g}" if fx else ""))
     path = folder if sensor == "rgbd" else folder / "sequences" / "00"
     return Sequence(name=f"synth/{sensor}_m{movers}", kind="tum" if sensor == "rgbd" else "kitti",
                     path=str(path), sensor=sensor, labels=str(path / "labels"),
                     synthetic={"sensor": sensor, "movers": movers, "frames": frames, "seed": seed,
-                               "width": width, "height": height, "out": str(folder)})
+                               "width": width, "height": height, **({"fx": fx} if fx else {}), "out": str(folder)})
 
 
 def ensure_rendered(seq: Sequence) -> None:
