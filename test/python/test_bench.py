@@ -129,7 +129,7 @@ def _record(case, system, preset, ate, ms, run=0):
 def test_report_renders_from_results(tmp_path):
     records = [_record("s:stereo:off", "dynaorb", "off", 0.02, 40.0), _record("s:stereo:off", "dynaorb", "off", 0.04, 50.0, 1),
                _record("s:stereo:orbslam3", "orbslam3", "off", 0.01, 60.0),
-               {**_record("s:stereo:li", "dynaorb", "li", None, None), "error": "died of signal SIGSEGV\n..."}]
+               {**_record("s:stereo:li", "dynaorb", "li", None, 1.0), "error": "died of signal SIGSEGV\n..."}]
     results = {"suite": "quick", "runs": 2, "records": records, "not_run": [{"what": "x", "reason": "why"}],
                "peer": {"status": "run"}, "machine": {"cpus": 2}}
     (tmp_path / "results.json").write_text(json.dumps(results))
