@@ -58,6 +58,11 @@ def test_crashed_run_is_recorded(tmp_path):
     assert not child.ok and "SIGABRT" in child.failure()
     child = run_child([sys.executable, "-c", "import time; time.sleep(30)"], tmp_path / "log2", 0.5)
     assert child.timed_out and child.returncode is None
+    # Peak memory is the child's own: 200 MB touched shows, the parent's size does not.
+    big = run_child([sys.executable, "-c", "b = bytearray(200 << 20); import time; time.sleep(0.3)"],
+                    tmp_path / "log3", 30)
+    small = run_child([sys.executable, "-c", "import time; time.sleep(0.3)"], tmp_path / "log4", 30)
+    assert big.ok and big.peak_rss_mb > 200 and small.peak_rss_mb < 40
 
 
 def test_suites_cover_sensors_and_list_what_is_not_run(tmp_path, data):

@@ -26,6 +26,9 @@ def main(argv: list[str]) -> int:
     dyn = stats.get("dynamic_filter")
     if dyn:
         dyn.pop("per_frame", None)
+    from dynaorb.bench.process import self_peak_mb
+
+    stats["peak_rss_mb_self"] = self_peak_mb()
     result_file.write_text(json.dumps(stats))
     return 0
 

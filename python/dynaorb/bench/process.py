@@ -12,7 +12,7 @@ import time
 @dataclasses.dataclass
 class ChildResult:
     returncode: int | None    # None: killed at the time limit
-    peak_rss_mb: float | None # the child's own ru_maxrss (wait4), MiB
+    peak_rss_mb: float | None # the child's peak resident memory (VmHWM after its exec), MiB
     wall_s: float
     timed_out: bool
     log: str                  # file with the child's stdout and stderr
@@ -40,15 +40,22 @@ class ChildResult:
 
 def run_child(cmd: list[str], log: pathlib.Path, timeout_s: float, env: dict | None = None,
               cwd: str | None = None) -> ChildResult:
-    """Runs cmd to completion (or kills it at timeout_s) and reads its rusage with wait4:
-    the peak resident memory of that process alone, not of this one or its other children."""
+    """Runs cmd to completion (or kills it at timeout_s), sampling its peak resident memory.
+
+    The peak is /proc/PID/status VmHWM, the high-water mark of the process's
+    own address space since its exec, read every 50 ms (it only grows, so
+    the last reading misses at most the final 50 ms). Not ru_maxrss: Linux
+    carries over the forking parent's resident size into the child's
+    ru_maxrss, so every child would report at least this process's size."""
     log.parent.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     with open(log, "wb") as out:
         proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, env=env, cwd=cwd,
                                 start_new_session=True)
         timed_out = False
+        peak_kb = 0
         while True:
+            peak_kb = max(peak_kb, _vm_hwm_kb(proc.pid))
             pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
             if pid != 0:
                 break
@@ -61,5 +68,23 @@ def run_child(cmd: list[str], log: pathlib.Path, timeout_s: float, env: dict | N
     proc.returncode = os.waitstatus_to_exitcode(status)  # Popen must not wait for it again
     wall = time.perf_counter() - start
     return ChildResult(returncode=None if timed_out else proc.returncode,
-                       peak_rss_mb=usage.ru_maxrss / 1024.0 if usage.ru_maxrss else None,  # Linux: KiB
+                       peak_rss_mb=peak_kb / 1024.0 if peak_kb else None,
                        wall_s=wall, timed_out=timed_out, log=str(log))
+
+
+def _vm_hwm_kb(pid: int) -> int:
+    """VmHWM of a live process in KiB; 0 when it cannot be read (exited, not Linux)."""
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1])
+    except (OSError, ValueError):
+        pass
+    return 0
+
+
+def self_peak_mb() -> float | None:
+    """This process's own VmHWM in MiB (what a child reports about itself at its end)."""
+    kb = _vm_hwm_kb(os.getpid())
+    return kb / 1024.0 if kb else None

@@ -292,7 +292,7 @@ def render(results: dict, out: pathlib.Path, plots: dict | None = None, stages_p
              "extract, stereo_matching, tracking); *track call* is the wall time around the track call (image "
              "loading outside), taken the same way for dynaorb and ORB-SLAM3: the pair table compares those.",
              "- fps: frames over the whole loop's wall time (image loading included). Peak MB: the run's process "
-             "(ru_maxrss through wait4), for ORB-SLAM3 the worker's python process.",
+             "(VmHWM of its own address space), for ORB-SLAM3 the worker's python process.",
              "- ATE: evo, SE3 alignment (Sim3 for monocular), RMSE of the position error; RPE per frame.",
              "- Semantic stages read the sequences' label images (synthetic: PASCAL VOC ids as a network would "
              "output, parked car included); the segmentation network itself is not run in these suites "

@@ -67,6 +67,8 @@ def _ours_record(case: Case, run: int, out: pathlib.Path, opts: BenchOptions) ->
     if child.ok and result.is_file():
         stats = json.loads(result.read_text())
         record.update(_metrics(stats))
+        # The child's own reading at its end is exact; the parent's sampling covers crashes.
+        record["peak_rss_mb"] = max(v for v in (child.peak_rss_mb, stats.get("peak_rss_mb_self"), 0.0) if v is not None)
         record["stats"] = {k: stats.get(k) for k in ("frames", "tracked_frames", "init_frame", "states",
                                                       "lost_frames", "relocalizations", "map", "wall_s",
                                                       "frames_rejected", "frames_skipped")}
