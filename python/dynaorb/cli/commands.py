@@ -123,6 +123,36 @@ def cmd_segment(args) -> int:
 
 
 def cmd_bench(args) -> int:
+    out = pathlib.Path(args.out)
+    if args.report_only or (args.readme and args.suite is None):
+        from dynaorb.bench import report
+
+        if args.report_only:
+            print(f"report: {report.write(report.load(out), out)}")
+        if args.readme:
+            _write_readme(out)
+        return 0
+    if args.suite in ("quick", "full"):
+        from dynaorb.bench.suite_runner import BenchOptions, run_suite
+
+        run_suite(BenchOptions(suite=args.suite, out=args.out, runs=args.runs or 3, peer=not args.no_peer,
+                               peer_venv=args.peer_venv))
+        print((out / "report.md").read_text())
+        if args.readme:
+            _write_readme(out)
+        return 0
+    return _bench_segmentation(args)
+
+
+def _write_readme(out: pathlib.Path) -> None:
+    from dynaorb.bench.readme import update_readme
+
+    readme = pathlib.Path(__file__).resolve().parents[3] / "README.md"
+    update_readme(readme, out)
+    print(f"README Results section written from {out / 'results.json'} into {readme}")
+
+
+def _bench_segmentation(args) -> int:
     from dynaorb.bench import segmentation
     from dynaorb.segmentation import cache_dir
     from dynaorb.synth.textures import default_texture_dir
@@ -133,7 +163,7 @@ def cmd_bench(args) -> int:
     models = args.models or (data.parent / "models" / "segmentation")
     if not pathlib.Path(models).is_dir():
         models = cache_dir()
-    segmentation.run(args.out, str(models), str(data), runs=args.runs,
+    segmentation.run(args.out, str(models), str(data), runs=args.runs or 10,
                      sequence=tuple(args.sequence) if args.sequence else None, model=args.model)
     print((pathlib.Path(args.out) / "segmentation.md").read_text())
     return 0

@@ -128,12 +128,25 @@ def build_parser() -> argparse.ArgumentParser:
     vd.add_argument("--force", action="store_true", help="train it again")
     vd.set_defaults(func=commands.cmd_vocab_default)
 
-    b = sub.add_parser("bench", help="benchmarks (speed as medians; JSON and a Markdown table)")
-    b.add_argument("--suite", choices=["segmentation"], default="segmentation",
+    b = sub.add_parser("bench", help="benchmarks (speed as medians; JSON and a Markdown report)")
+    b.add_argument("--suite", choices=["segmentation", "quick", "full"],
                    help="segmentation: network latency per model, back end and thread count, and SLAM "
-                        "fps without / with synchronous / with asynchronous segmentation")
+                        "fps without / with synchronous / with asynchronous segmentation; quick: a few "
+                        "sequences (EuRoC V1_01 stereo, KITTI 06, synthetic RGB-D and stereo with movers); "
+                        "full: every sequence and sensor of ../shared/data and the synthetic suite with and "
+                        "without movers; both in off mode and every dynamic preset, against ORB-SLAM3")
     b.add_argument("--out", default="out/bench", help="output folder (default out/bench)")
-    b.add_argument("--runs", type=int, default=10, help="timed runs per model and thread count")
+    b.add_argument("--runs", type=int, help="runs per case (quick/full, default 3) or timed runs per model and "
+                                            "thread count (segmentation, default 10)")
+    b.add_argument("--no-peer", action="store_true", help="quick/full: without the ORB-SLAM3 comparison")
+    b.add_argument("--peer-venv", metavar="DIR",
+                   help="virtual environment for pyorbslam3 (default ~/.cache/dynaorb/peer/orbslam3-venv; "
+                        "created and installed on first use)")
+    b.add_argument("--readme", action="store_true",
+                   help="write the README's Results section from OUT/results.json (after the run; "
+                        "alone, without --suite, from a finished run)")
+    b.add_argument("--report-only", action="store_true",
+                   help="render OUT/report.md again from OUT/results.json without running anything")
     b.add_argument("--models", help="folder of models (default ../shared/models/segmentation, else the cache)")
     b.add_argument("--model", help="model for the SLAM runs (default the dm05 PASCAL model of --models)")
     b.add_argument("--sequence", nargs=2, metavar=("KIND", "PATH"),

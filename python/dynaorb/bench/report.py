@@ -1,0 +1,342 @@
+"""OUT/report.md and its plots from the benchmark's results (results.json).
+
+Tables: per case (ATE, RPE, tracked %, ms/frame, fps, peak memory; medians
+over the runs, ATE min-max), each dynamic preset against `off` on the same
+sequence, dynaorb against ORB-SLAM3 pair by pair (ratios of ATE and of ms per
+frame), and the tracking thread's stages. Plots: per sequence the
+trajectories (ground truth, dynaorb off, ORB-SLAM3; first run of each, under
+the evaluation's own alignment) and the error over time (every preset and
+the peer), and a per-stage time bar chart.
+"""
+from __future__ import annotations
+
+import collections
+import copy
+import json
+import pathlib
+import statistics
+
+import numpy as np
+
+STAGES = ("preprocess", "dynamic", "extract", "stereo_matching", "tracking")
+
+
+def _median(values):
+    values = [v for v in values if v is not None]
+    return statistics.median(values) if values else None
+
+
+def aggregate(records: list[dict]) -> list[dict]:
+    """One row per case (in the order of the records): medians over its runs."""
+    groups = collections.OrderedDict()
+    for r in records:
+        groups.setdefault(r["case"], []).append(r)
+    rows = []
+    for key, runs in groups.items():
+        ok = [r for r in runs if not r.get("error")]
+        ates = [r["ate_rmse"] for r in ok if r.get("ate_rmse") is not None]
+        stage = collections.defaultdict(list)
+        for r in ok:
+            for k, v in (r.get("stage_ms_median") or {}).items():
+                stage[k].append(v)
+        first = runs[0]
+        dyn = next((r.get("dynamic_filter") for r in ok if r.get("dynamic_filter")), None)
+        rows.append({
+            "case": key, "system": first["system"], "sequence": first["sequence"], "sensor": first["sensor"],
+            "preset": first["preset"], "runs": len(runs), "runs_ok": len(ok), "runs_with_ate": len(ates),
+            "labels": first.get("labels"),
+            "errors": [r["error"].splitlines()[0] for r in runs if r.get("error")],
+            "ate_reasons": sorted({r["ate_reason"] for r in ok if r.get("ate_reason")}),
+            "ate_rmse": _median(ates), "ate_min": min(ates) if ates else None, "ate_max": max(ates) if ates else None,
+            "rpe_trans_rmse": _median(r.get("rpe_trans_rmse") for r in ok),
+            "rpe_rot_rmse": _median(r.get("rpe_rot_rmse") for r in ok),
+            "align": next((r.get("align") for r in ok if r.get("align")), None),
+            "tracked_fraction": _median(r.get("tracked_fraction") for r in ok),
+            "frame_ms_median": _median(r.get("frame_ms_median") for r in ok),
+            "track_call_ms_median": _median(r.get("track_call_ms_median") for r in ok),
+            "fps": _median(r.get("fps") for r in ok),
+            "peak_rss_mb": _median(r.get("peak_rss_mb") for r in runs),
+            "stage_ms_median": {k: statistics.median(v) for k, v in stage.items()},
+            "dynamic_stages": dyn.get("stages") if dyn else None,
+            "dynamic_ms_median": (dyn or {}).get("summary", {}).get("stage_ms_median", {}).get("dynamic") if dyn else None,
+            "dynamic_keypoints_median": (dyn or {}).get("summary", {}).get("dynamic_keypoints_median") if dyn else None,
+        })
+    return rows
+
+
+def pairs(rows: list[dict]) -> list[dict]:
+    """dynaorb (off) against ORB-SLAM3 on each sequence both ran: ratios ours / theirs."""
+    ours = {(r["sequence"], r["sensor"]): r for r in rows if r["system"] == "dynaorb" and r["preset"] == "off"}
+    out = []
+    for r in rows:
+        if r["system"] != "orbslam3":
+            continue
+        o = ours.get((r["sequence"], r["sensor"]))
+        if o is None:
+            continue
+        out.append({"sequence": r["sequence"], "sensor": r["sensor"], "ours": o, "theirs": r,
+                    "ate_ratio": _ratio(o["ate_rmse"], r["ate_rmse"]),
+                    "ms_ratio": _ratio(o["track_call_ms_median"], r["track_call_ms_median"])})
+    return out
+
+
+def preset_vs_off(rows: list[dict]) -> list[dict]:
+    off = {(r["sequence"], r["sensor"]): r for r in rows if r["system"] == "dynaorb" and r["preset"] == "off"}
+    out = []
+    for r in rows:
+        if r["system"] != "dynaorb" or r["preset"] == "off":
+            continue
+        o = off.get((r["sequence"], r["sensor"]))
+        if o is None:
+            continue
+        out.append({"row": r, "off": o, "ate_ratio": _ratio(r["ate_rmse"], o["ate_rmse"]),
+                    "ms_ratio": _ratio(r["frame_ms_median"], o["frame_ms_median"])})
+    return out
+
+
+def _ratio(a, b):
+    return a / b if a is not None and b not in (None, 0) else None
+
+
+def _f(v, fmt="{:.3f}", none="n/a"):
+    return none if v is None else fmt.format(v)
+
+
+def _pct(v):
+    return _f(None if v is None else 100 * v, "{:.0f} %")
+
+
+def _label(r: dict) -> str:
+    return "ORB-SLAM3" if r["system"] == "orbslam3" else f"dynaorb {r['preset']}"
+
+
+def _ate_cell(r: dict) -> str:
+    if r["ate_rmse"] is None:
+        return "n/a" + (f" ({'; '.join(r['ate_reasons'])})" if r["ate_reasons"] else "")
+    spread = f" ({r['ate_min']:.4f}-{r['ate_max']:.4f})" if r["runs_with_ate"] > 1 else ""
+    return f"{r['ate_rmse']:.4f}{spread}"
+
+
+def case_table(rows: list[dict]) -> list[str]:
+    lines = ["| sequence | sensor | system | runs ok | ATE RMSE [m] median (min-max) | RPE trans [m/frame] | "
+             "RPE rot [deg/frame] | tracked | tracking thread ms/frame | track call ms/frame | fps | peak MB |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['sequence']} | {r['sensor']} | {_label(r)} | {r['runs_ok']}/{r['runs']} | {_ate_cell(r)} | "
+                     f"{_f(r['rpe_trans_rmse'], '{:.4f}')} | {_f(r['rpe_rot_rmse'], '{:.3f}')} | "
+                     f"{_pct(r['tracked_fraction'])} | {_f(r['frame_ms_median'], '{:.1f}', '-')} | "
+                     f"{_f(r['track_call_ms_median'], '{:.1f}')} | {_f(r['fps'], '{:.1f}')} | "
+                     f"{_f(r['peak_rss_mb'], '{:.0f}')} |")
+    return lines
+
+
+def pair_table(ps: list[dict]) -> list[str]:
+    lines = ["| sequence | sensor | ATE dynaorb [m] | ATE ORB-SLAM3 [m] | ATE ours/theirs | "
+             "ms/frame dynaorb | ms/frame ORB-SLAM3 | ms ours/theirs | tracked dynaorb | tracked ORB-SLAM3 |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for p in ps:
+        o, t = p["ours"], p["theirs"]
+        lines.append(f"| {p['sequence']} | {p['sensor']} | {_f(o['ate_rmse'], '{:.4f}')} | {_f(t['ate_rmse'], '{:.4f}')} | "
+                     f"{_f(p['ate_ratio'], '{:.2f}')} | {_f(o['track_call_ms_median'], '{:.1f}')} | "
+                     f"{_f(t['track_call_ms_median'], '{:.1f}')} | {_f(p['ms_ratio'], '{:.2f}')} | "
+                     f"{_pct(o['tracked_fraction'])} | {_pct(t['tracked_fraction'])} |")
+    return lines
+
+
+def preset_table(ps: list[dict]) -> list[str]:
+    lines = ["| sequence | sensor | preset (stages) | labels | ATE [m] | ATE off [m] | ATE preset/off | "
+             "ms/frame | ms/frame off | ms preset/off | dynamic filter ms | dynamic keypoints (median) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for p in ps:
+        r, o = p["row"], p["off"]
+        stages = ", ".join(r["dynamic_stages"] or [])
+        labels = "label images" if r["labels"] else "none"
+        lines.append(f"| {r['sequence']} | {r['sensor']} | {r['preset']} ({stages}) | {labels} | "
+                     f"{_f(r['ate_rmse'], '{:.4f}')} | {_f(o['ate_rmse'], '{:.4f}')} | {_f(p['ate_ratio'], '{:.2f}')} | "
+                     f"{_f(r['frame_ms_median'], '{:.1f}')} | {_f(o['frame_ms_median'], '{:.1f}')} | "
+                     f"{_f(p['ms_ratio'], '{:.2f}')} | {_f(r['dynamic_ms_median'], '{:.1f}')} | "
+                     f"{_f(r['dynamic_keypoints_median'], '{:.0f}')} |")
+    return lines
+
+
+def stage_table(rows: list[dict]) -> list[str]:
+    ours = [r for r in rows if r["system"] == "dynaorb"]
+    extra = sorted({k for r in ours for k in r["stage_ms_median"] if k.startswith("dynamic.")})
+    cols = list(STAGES) + extra + ["frame_total"]
+    lines = ["| sequence | sensor | preset | " + " | ".join(cols) + " |", "|---|---|---|" + "---|" * len(cols)]
+    for r in ours:
+        lines.append(f"| {r['sequence']} | {r['sensor']} | {r['preset']} | " +
+                     " | ".join(_f(r["stage_ms_median"].get(c), "{:.1f}", "-") for c in cols) + " |")
+    return lines
+
+
+# --- plots ---------------------------------------------------------------------------------------------
+
+def _aligned(gt_file: pathlib.Path, est_file: pathlib.Path, sim3: bool):
+    """(reference xyz, aligned estimate xyz, stamps, per-pose error) as the ATE aligns them, or None."""
+    from evo.core import sync
+
+    from dynaorb.evaluation import load_trajectory
+
+    try:
+        ref, est = load_trajectory(gt_file), load_trajectory(est_file)
+        ref, est = sync.associate_trajectories(ref, est, max_diff=0.02)
+        if ref.num_poses < 3:
+            return None
+        est = copy.deepcopy(est)
+        est.align(ref, correct_scale=sim3)
+    except Exception:  # no or too few poses: nothing to draw
+        return None
+    a, b = ref.positions_xyz, est.positions_xyz
+    return a, b, np.asarray(est.timestamps) - float(est.timestamps[0]), np.linalg.norm(a - b, axis=1)
+
+
+def sequence_plots(records: list[dict], out: pathlib.Path) -> dict:
+    """{sequence key: [png paths]}: trajectories and error over time of the first run of each case."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    by_seq = collections.OrderedDict()
+    for r in records:
+        if r.get("error") or r.get("run") != 0 or r.get("ate_rmse") is None:
+            continue
+        by_seq.setdefault(f"{r['sequence']}:{r['sensor']}", []).append(r)
+    plots = {}
+    out.mkdir(parents=True, exist_ok=True)
+    for key, runs in by_seq.items():
+        curves = []
+        for r in runs:
+            gt = pathlib.Path(r["out"]) / "groundtruth.tum"
+            a = _aligned(gt, pathlib.Path(r["trajectory"]), r["sensor"] == "mono")
+            if a is not None:
+                curves.append((_label(r), r, a))
+        if not curves:
+            continue
+        slug = key.replace("/", "_").replace(":", "_")
+        fig, ax = plt.subplots(figsize=(6, 5))
+        ref = curves[0][2][0]
+        j = 2 if np.ptp(ref[:, 2]) > np.ptp(ref[:, 1]) else 1  # the wider of the two other axes
+        ax.plot(ref[:, 0], ref[:, j], "k-", lw=2, label="ground truth")
+        for name, r, (_, b, _, _) in curves:
+            if r["preset"] == "off":  # ours off and the peer; presets are in the error plot
+                ax.plot(b[:, 0], b[:, j], "-", label=name)
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel(f"{'xyz'[j]} [m]")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(True)
+        ax.legend(fontsize=8)
+        ax.set_title(f"{key}: trajectories (aligned)")
+        fig.tight_layout()
+        traj_png = out / f"{slug}_trajectory.png"
+        fig.savefig(traj_png, dpi=100)
+        plt.close(fig)
+        fig, ax = plt.subplots(figsize=(7, 3.5))
+        for name, r, (_, _, t, err) in curves:
+            ax.plot(t, err, "-", label=name, lw=2 if r["system"] == "orbslam3" else 1)
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel("position error [m]")
+        ax.grid(True)
+        ax.legend(fontsize=7)
+        ax.set_title(f"{key}: error over time")
+        fig.tight_layout()
+        err_png = out / f"{slug}_error.png"
+        fig.savefig(err_png, dpi=100)
+        plt.close(fig)
+        plots[key] = [traj_png, err_png]
+    return plots
+
+
+def stage_plot(rows: list[dict], out: pathlib.Path) -> pathlib.Path | None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ours = [r for r in rows if r["system"] == "dynaorb" and r["stage_ms_median"]]
+    if not ours:
+        return None
+    fig, ax = plt.subplots(figsize=(max(6, 0.45 * len(ours) + 2), 4.5))
+    x = np.arange(len(ours))
+    bottom = np.zeros(len(ours))
+    for stage in STAGES:
+        v = np.array([r["stage_ms_median"].get(stage, 0.0) for r in ours])
+        ax.bar(x, v, bottom=bottom, label=stage)
+        bottom += v
+    ax.set_xticks(x)
+    ax.set_xticklabels([f"{r['sequence']}:{r['sensor']}:{r['preset']}" for r in ours], rotation=75, fontsize=7,
+                       ha="right")
+    ax.set_ylabel("ms per frame (median per stage)")
+    ax.set_title("tracking thread stages")
+    ax.legend(fontsize=7)
+    ax.grid(True, axis="y")
+    fig.tight_layout()
+    path = out / "stages.png"
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+# --- the report -----------------------------------------------------------------------------------------
+
+def render(results: dict, out: pathlib.Path, plots: dict | None = None, stages_png=None) -> str:
+    rows = aggregate(results["records"])
+    m = results.get("machine", {})
+    peer = results.get("peer") or {}
+    lines = [f"# Benchmark: suite {results['suite']}", "",
+             f"{results['runs']} run(s) per case; started {results.get('started')}, finished {results.get('finished')}; "
+             f"{m.get('cpus')} CPUs ({m.get('cpu', 'unknown CPU')}), {m.get('platform')}.", "",
+             f"- dynaorb mode: {results.get('mapping')}. Medians over the runs; ATE min-max when more than one run.",
+             "- ms/frame: *tracking thread* is the median of dynaorb's per-frame stage sum (preprocess, dynamic, "
+             "extract, stereo_matching, tracking); *track call* is the wall time around the track call (image "
+             "loading outside), taken the same way for dynaorb and ORB-SLAM3: the pair table compares those.",
+             "- fps: frames over the whole loop's wall time (image loading included). Peak MB: the run's process "
+             "(VmHWM of its own address space), for ORB-SLAM3 the worker's python process.",
+             "- ATE: evo, SE3 alignment (Sim3 for monocular), RMSE of the position error; RPE per frame.",
+             "- Semantic stages read the sequences' label images (synthetic: PASCAL VOC ids as a network would "
+             "output, parked car included); the segmentation network itself is not run in these suites "
+             "(`dynaorb bench --suite segmentation` measures its latency, asynchronous on its own thread). Real "
+             "sequences have no label images: there the semantic stage marks nothing and only the presets' "
+             "geometric stages act.",
+             f"- ORB-SLAM3 peer: {peer.get('status', 'n/a')}"
+             + (f" ({peer.get('package')}, own venv {peer.get('venv')}, our vocabulary as ORBvoc.txt "
+                f"{peer.get('vocabulary')}); the same image files, calibration and ORB settings (features, "
+                f"scale, levels, FAST thresholds); stereo rectified by ORB-SLAM3 itself inside its track call "
+                f"(File.version 1.0 settings with Stereo.T_c1_c2); its trajectory is the one it saves at "
+                f"shutdown, evaluated with the same code and ground truth." if peer.get("status") == "run" else ""),
+             ""]
+    if results.get("not_run"):
+        lines += ["## Not run", ""] + [f"- {n['what']}: {n['reason']}" for n in results["not_run"]] + [""]
+    failed = [r for r in rows if r["errors"]]
+    if failed:
+        lines += ["## Failed runs", ""] + [f"- {r['case']}: {e}" for r in failed for e in r["errors"]] + [""]
+    ps = pairs(rows)
+    if ps:
+        lines += ["## dynaorb (off) against ORB-SLAM3", "", *pair_table(ps), ""]
+    lines += ["## Every case", "", *case_table(rows), ""]
+    pv = preset_vs_off(rows)
+    if pv:
+        lines += ["## Dynamic presets against off", "", *preset_table(pv), ""]
+    lines += ["## Tracking thread stages (median ms per frame)", "", *stage_table(rows), ""]
+    if stages_png:
+        lines += [f"![stages]({pathlib.Path(stages_png).relative_to(out)})", ""]
+    if plots:
+        lines += ["## Trajectories and error over time (first run)", ""]
+        for key, pngs in plots.items():
+            lines += [f"### {key}", ""] + [f"![{key}]({pathlib.Path(p).relative_to(out)})" for p in pngs] + [""]
+    return "\n".join(lines)
+
+
+def write(results: dict, out: pathlib.Path) -> pathlib.Path:
+    out = pathlib.Path(out)
+    rows = aggregate(results["records"])
+    plots = sequence_plots(results["records"], out / "plots")
+    stages_png = stage_plot(rows, out / "plots") if rows else None
+    path = out / "report.md"
+    path.write_text(render(results, out, plots, stages_png))
+    return path
+
+
+def load(out: pathlib.Path) -> dict:
+    return json.loads((pathlib.Path(out) / "results.json").read_text())

@@ -1,0 +1,195 @@
+"""`dynaorb bench --suite quick|full`: every case N times, each run in its own process, and the peer.
+
+Ours: run_dataset with local mapping in its own thread (synchronous_mapping
+False), as a live camera runs it; ms per frame is the tracking thread's
+frame_total median (its stages), and the wall time around the track call is
+kept beside it for the comparison with the peer, which is timed that way.
+The peer (ORB-SLAM3 through pyorbslam3) runs on each sequence N times in
+`off` terms: no dynamic filter.
+
+Writes OUT/results.json (every run, every number), OUT/report.md and the
+plots (report.py); run folders under OUT/runs/<case>/<run>.
+"""
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import json
+import logging
+import os
+import pathlib
+import platform
+import re
+import sys
+
+from dynaorb.bench.process import run_child
+from dynaorb.bench.suites import Case, Sequence, Suite, build_suite, ensure_rendered
+
+log = logging.getLogger(__name__)
+
+RUN_TIMEOUT_S = 900.0  # one run of one case; a run past it is killed and recorded
+
+
+@dataclasses.dataclass
+class BenchOptions:
+    suite: str = "quick"
+    out: str = "out/bench"
+    runs: int = 3
+    peer: bool = True
+    peer_venv: str | None = None
+    vocabulary: str = "default"
+    synth_root: str | None = None   # cache of the rendered synthetic sequences (default OUT/synth)
+    timeout_s: float = RUN_TIMEOUT_S
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text)
+
+
+def _ours_record(case: Case, run: int, out: pathlib.Path, opts: BenchOptions) -> dict:
+    seq = case.sequence
+    out.mkdir(parents=True, exist_ok=True)
+    spec = {"kind": seq.kind, "path": seq.path, "sensor": seq.sensor, "out": str(out), "dynamic": case.preset,
+            "vocabulary": opts.vocabulary, "synchronous_mapping": False, "result": str(out / "result.json")}
+    # The semantic stage reads the label images; presets without it (li) run without labels.
+    if case.preset != "off" and seq.labels and _has_semantic(case.preset, seq.sensor):
+        spec["labels"] = seq.labels
+    (out / "spec.json").write_text(json.dumps(spec, indent=1))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in [str(pathlib.Path(__file__).resolve().parents[2]),
+                                                                os.environ.get("PYTHONPATH", "")] if p))
+    child = run_child([sys.executable, "-m", "dynaorb.bench.child", str(out / "spec.json")], out / "run.log",
+                      opts.timeout_s, env=env)
+    record = {"system": "dynaorb", "case": case.key, "sequence": seq.name, "sensor": seq.sensor,
+              "preset": case.preset, "run": run, "out": str(out), "labels": spec.get("labels"),
+              "trajectory": str(out / "trajectory.tum"),
+              "peak_rss_mb": child.peak_rss_mb, "process_wall_s": child.wall_s}
+    result = out / "result.json"
+    if child.ok and result.is_file():
+        stats = json.loads(result.read_text())
+        record.update(_metrics(stats))
+        # The child's own reading at its end is exact; the parent's sampling covers crashes.
+        record["peak_rss_mb"] = max(v for v in (child.peak_rss_mb, stats.get("peak_rss_mb_self"), 0.0) if v is not None)
+        record["stats"] = {k: stats.get(k) for k in ("frames", "tracked_frames", "init_frame", "states",
+                                                      "lost_frames", "relocalizations", "map", "wall_s",
+                                                      "frames_rejected", "frames_skipped")}
+        dyn = stats.get("dynamic_filter")
+        record["dynamic_filter"] = None if not dyn else {k: dyn.get(k) for k in (
+            "stages", "labels", "summary", "all_dynamic_frames", "stage_failures")}
+    else:
+        record["error"] = (child.failure() or "no result written") + "\n" + child.log_tail()
+    return record
+
+
+def _has_semantic(preset: str, sensor: str) -> bool:
+    from dynaorb import core
+    from dynaorb.runner.run import resolve_dynamic
+
+    return "semantic" in core().DynamicFilterOptions.load(str(resolve_dynamic(preset))).stages_for(sensor)
+
+
+def _metrics(stats: dict) -> dict:
+    """The numbers the report tables use, from a run's stats (ours or the peer's)."""
+    ate = stats.get("ate")
+    return {
+        "ate": ate, "ate_rmse": ate["rmse"] if ate else None, "ate_reason": None if ate else stats.get("reason"),
+        "rpe_trans_rmse": (stats.get("rpe_trans") or {}).get("rmse"),
+        "rpe_rot_rmse": (stats.get("rpe_rot") or {}).get("rmse"),
+        "align": stats.get("align"),
+        "tracked_fraction": stats.get("tracked_fraction"),
+        "frame_ms_median": (stats.get("stage_ms_median") or {}).get("frame_total"),
+        "track_call_ms_median": stats.get("track_call_ms_median"),
+        "track_call_ms": stats.get("track_call_ms"),
+        "fps": stats.get("fps"),
+        "stage_ms_median": stats.get("stage_ms_median"),
+    }
+
+
+def _peer_records(seq: Sequence, runs: int, root: pathlib.Path, python, vocabulary, timeout_s: float) -> list[dict]:
+    from dynaorb.peer import orbslam3
+
+    records = []
+    for run in range(runs):
+        out = root / "runs" / _slug(f"{seq.key}:orbslam3") / str(run)
+        stats = orbslam3.run(orbslam3.PeerCase(seq.kind, seq.path, seq.sensor, out), python, vocabulary, timeout_s)
+        record = {"system": "orbslam3", "case": f"{seq.key}:orbslam3", "sequence": seq.name, "sensor": seq.sensor,
+                  "preset": "off", "run": run, "out": str(out), "peak_rss_mb": stats.get("peak_rss_mb"),
+                  "process_wall_s": stats.get("wall_s")}
+        if "error" in stats:
+            record["error"] = stats["error"]
+        else:
+            record.update(_metrics(stats))
+            record["trajectory"] = str(out / "trajectory.tum")
+            record["stats"] = {k: stats.get(k) for k in ("frames", "tracked_frames", "states", "init_s", "exit",
+                                                          "pyorbslam3", "trajectory_poses")}
+        records.append(record)
+    return records
+
+
+def machine() -> dict:
+    info = {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count()}
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                info["cpu"] = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return info
+
+
+def run_suite(opts: BenchOptions, suite: Suite | None = None, progress=print) -> dict:
+    """Runs every case (and the peer) and writes results.json and report.md; the results."""
+    from dynaorb.bench import report
+    from dynaorb.synth.textures import default_texture_dir
+
+    out = pathlib.Path(opts.out)
+    out.mkdir(parents=True, exist_ok=True)
+    if suite is None:
+        data = default_texture_dir()
+        if data is None:
+            raise FileNotFoundError("the shared data folder was not found (set DYNAORB_SHARED)")
+        suite = build_suite(opts.suite, pathlib.Path(data),
+                            pathlib.Path(opts.synth_root) if opts.synth_root else out / "synth")
+    for seq in suite.sequences:
+        if seq.synthetic:
+            progress(f"rendering {seq.name} (once; cached in {seq.synthetic['out']})")
+            ensure_rendered(seq)
+    results = {"suite": suite.name, "runs": opts.runs, "started": datetime.datetime.now().isoformat(timespec="seconds"),
+               "machine": machine(), "mapping": "local mapping in its own thread (synchronous_mapping False), "
+                                                "as a live camera runs",
+               "vocabulary": opts.vocabulary, "not_run": list(suite.not_run),
+               "sequences": [dataclasses.asdict(s) for s in suite.sequences], "records": [], "peer": None}
+    for case in suite.cases:
+        for run in range(opts.runs):
+            progress(f"dynaorb {case.key} run {run + 1}/{opts.runs}")
+            record = _ours_record(case, run, out / "runs" / _slug(case.key) / str(run), opts)
+            if record.get("error"):
+                progress(f"  failed: {record['error'].splitlines()[0]}")
+            results["records"].append(record)
+    if opts.peer:
+        results["peer"] = _run_peer(suite, opts, out, results["records"], progress)
+    else:
+        results["peer"] = {"status": "skipped (--no-peer)"}
+    results["finished"] = datetime.datetime.now().isoformat(timespec="seconds")
+    (out / "results.json").write_text(json.dumps(results, indent=1))
+    report.write(results, out)
+    return results
+
+
+def _run_peer(suite: Suite, opts: BenchOptions, out: pathlib.Path, records: list, progress) -> dict:
+    from dynaorb.peer import orbslam3
+
+    try:
+        python = orbslam3.ensure_venv(pathlib.Path(opts.peer_venv) if opts.peer_venv else None, log=progress)
+        vocabulary = orbslam3.vocabulary_text(opts.vocabulary)
+    except orbslam3.PeerUnavailable as exc:
+        progress(f"peer not run: {exc}")
+        return {"status": f"not run: {exc}"}
+    for seq in suite.sequences:
+        progress(f"orbslam3 {seq.key} ({opts.runs} runs)")
+        for record in _peer_records(seq, opts.runs, out, python, vocabulary, opts.timeout_s):
+            if record.get("error"):
+                progress(f"  failed: {record['error'].splitlines()[0]}")
+            records.append(record)
+    return {"status": "run", "package": orbslam3.PYORBSLAM3, "venv": str(python.parent.parent),
+            "vocabulary": str(vocabulary)}

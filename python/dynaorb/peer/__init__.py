@@ -1,0 +1,1 @@
+"""Other SLAM systems run as separate programs, for comparison only (never imported by the product)."""

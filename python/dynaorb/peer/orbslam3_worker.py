@@ -1,0 +1,133 @@
+"""ORB-SLAM3 (pyorbslam3) on one sequence, for the benchmark's comparison.
+
+Runs with the python of the peer's own virtual environment
+(~/.cache/dynaorb/peer/orbslam3-venv): it never imports dynaorb, and dynaorb
+never imports pyorbslam3 (GPL: a measuring stick, run as a separate program).
+
+    orbslam3_worker.py MANIFEST.json
+
+MANIFEST.json (written by dynaorb.peer.orbslam3): sensor, settings (ORB-SLAM3
+settings file), vocabulary (ORBvoc.txt), frames [{stamp, image, right?,
+depth?}], trajectory (TUM file to write), result (JSON to write).
+
+Each track call is timed with a wall clock, image loading outside the timed
+window (ORB-SLAM3 rectifies stereo pairs inside the call, as dynaorb does).
+The result holds per frame: ms, tracking state and tracked map points; and
+the trajectory ORB-SLAM3 saves at shutdown (its keyframe-relative poses),
+converted from its EuRoC file (nanoseconds) to TUM (seconds).
+"""
+from __future__ import annotations
+
+import collections
+import json
+import os
+import statistics
+import sys
+import time
+
+import cv2
+import numpy as np
+
+
+def _read(path: str, flags=cv2.IMREAD_UNCHANGED):
+    image = cv2.imread(path, flags)
+    if image is None:
+        raise FileNotFoundError(f"{path}: cannot read the image")
+    return image
+
+
+def _euroc_to_tum(src: str, dst: str) -> int:
+    """ORB-SLAM3's EuRoC trajectory (stamp in ns, t, q xyzw) as a TUM file; poses written."""
+    rows = []
+    if os.path.isfile(src):
+        for line in open(src):
+            fields = line.replace(",", " ").split()
+            if len(fields) == 8 and not line.startswith("#"):
+                rows.append([float(fields[0]) * 1e-9] + [float(x) for x in fields[1:]])
+    with open(dst, "w") as f:
+        for r in rows:
+            f.write(f"{r[0]:.9f} " + " ".join(f"{x:.9f}" for x in r[1:]) + "\n")
+    return len(rows)
+
+
+def _vm_hwm_mb() -> float | None:
+    """Peak resident memory of this process since its exec (ru_maxrss would include the parent's at fork)."""
+    try:
+        for line in open("/proc/self/status"):
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024.0
+    except (OSError, ValueError):
+        pass
+    return None
+
+
+def _version(package: str) -> str | None:
+    try:
+        from importlib.metadata import version
+
+        return version(package)
+    except Exception:  # metadata missing: the version is unknown, not an error
+        return None
+
+
+def main(manifest_path: str) -> int:
+    manifest = json.load(open(manifest_path))
+    import pyorbslam3 as pos
+
+    sensor = {"mono": pos.Sensor.MONOCULAR, "stereo": pos.Sensor.STEREO, "rgbd": pos.Sensor.RGBD}[manifest["sensor"]]
+    t0 = time.perf_counter()
+    slam = pos.Slam(manifest["vocabulary"], manifest["settings"], sensor, use_viewer=False)
+    init_s = time.perf_counter() - t0
+    per_frame = []
+    states = collections.Counter()
+    loop_start = time.perf_counter()
+    for frame in manifest["frames"]:
+        image = _read(frame["image"])
+        stamp = float(frame["stamp"])
+        if manifest["sensor"] == "stereo":
+            right = _read(frame["right"])
+            t = time.perf_counter()
+            r = slam.track_stereo(image, right, stamp)
+        elif manifest["sensor"] == "rgbd":
+            depth = _read(frame["depth"]).astype(np.float32)  # raw units: RGBD.DepthMapFactor scales them
+            t = time.perf_counter()
+            r = slam.track_rgbd(image, depth, stamp)
+        else:
+            t = time.perf_counter()
+            r = slam.track_monocular(image, stamp)
+        ms = 1000.0 * (time.perf_counter() - t)
+        state = str(r.state).split(".")[-1]
+        states[state] += 1
+        per_frame.append({"stamp": stamp, "ms": ms, "state": state, "tracked_points": int(r.num_tracked_points)})
+    loop_s = time.perf_counter() - loop_start
+    slam.shutdown()
+    euroc = manifest["trajectory"] + ".euroc"
+    slam.save_trajectory_euroc(euroc)
+    poses = _euroc_to_tum(euroc, manifest["trajectory"])
+    ms = [f["ms"] for f in per_frame]
+    result = {
+        "pyorbslam3": _version("pyorbslam3"),
+        "frames": len(per_frame),
+        "states": dict(states),
+        "tracked_frames": states.get("OK", 0),
+        "trajectory_poses": poses,
+        "init_s": init_s,
+        "loop_s": loop_s,
+        "track_call_ms_median": statistics.median(ms) if ms else None,
+        "track_call_ms": ms,
+        "peak_rss_mb_self": _vm_hwm_mb(),
+        "per_frame": per_frame,
+    }
+    with open(manifest["result"], "w") as f:
+        json.dump(result, f)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    # ORB-SLAM3's destructors can crash after a clean shutdown; the results are written.
+    os._exit(0)
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 2:
+        print("usage: orbslam3_worker.py MANIFEST.json", file=sys.stderr)
+        sys.exit(2)
+    sys.exit(main(sys.argv[1]))

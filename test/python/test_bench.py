@@ -1,0 +1,180 @@
+"""`dynaorb bench --suite quick|full`: suites, child runs, the ORB-SLAM3 peer's inputs, report, README section."""
+from __future__ import annotations
+
+import json
+import pathlib
+
+import pytest
+
+from dynaorb.bench import readme, report
+from dynaorb.bench.suites import Suite, build_suite, cases_for, synth_sequence
+from dynaorb.peer import orbslam3
+
+
+@pytest.fixture(scope="module")
+def tiny_suite(tmp_path_factory, data):
+    """One small synthetic RGB-D case with movers (20 frames, 320x240), off and the dm preset, run once."""
+    from dynaorb.bench.suite_runner import BenchOptions, run_suite
+
+    root = tmp_path_factory.mktemp("bench")
+    # fx: the synthetic camera's field of view at 320x240 (as conftest's synth_rgbd)
+    seq = synth_sequence("rgbd", 3, root / "synth", frames=20, seed=7, width=320, height=240, fx=262.5)
+    cases, not_run = cases_for([seq], presets=("dm", "li"))
+    suite = Suite("test", cases, [seq], not_run)
+    results = run_suite(BenchOptions(out=str(root / "out"), runs=1, peer=False), suite=suite, progress=lambda m: None)
+    return root / "out", results
+
+
+def test_suite_runs_and_reports(tiny_suite):
+    out, results = tiny_suite
+    saved = json.loads((out / "results.json").read_text())
+    assert saved["suite"] == "test" and saved["peer"]["status"].startswith("skipped")
+    # li has no stage for RGB-D: listed as not run, with the reason.
+    assert any(n["what"].endswith(":li") and "rgbd" in n["reason"] for n in saved["not_run"])
+    records = {r["preset"]: r for r in saved["records"]}
+    assert set(records) == {"off", "dm"}
+    for preset, r in records.items():
+        assert not r.get("error"), r.get("error")
+        # A 20-frame synthetic RGB-D clip (0.5 m path): centimetre-level error, every frame tracked.
+        assert 0.0 < r["ate_rmse"] < 0.25, (preset, r["ate_rmse"])
+        assert r["tracked_fraction"] > 0.9
+        assert r["peak_rss_mb"] > 50  # the child's own resident memory, numpy and the core loaded
+        assert r["track_call_ms_median"] > 0 and r["frame_ms_median"] > 0
+    assert records["dm"]["labels"] and records["dm"]["dynamic_filter"]["stages"] == ["semantic", "dm"]
+    assert records["off"]["labels"] is None
+    text = (out / "report.md").read_text()
+    assert "## Every case" in text and "## Dynamic presets against off" in text and "li" in text
+    assert f"{records['off']['ate_rmse']:.4f}" in text
+    assert (out / "plots" / "stages.png").is_file()
+    assert any(p.name.endswith("_error.png") for p in (out / "plots").iterdir())
+
+
+def test_crashed_run_is_recorded(tmp_path):
+    from dynaorb.bench.process import run_child
+
+    import sys
+
+    child = run_child([sys.executable, "-c", "import os; os.abort()"], tmp_path / "log", 30)
+    assert not child.ok and "SIGABRT" in child.failure()
+    child = run_child([sys.executable, "-c", "import time; time.sleep(30)"], tmp_path / "log2", 0.5)
+    assert child.timed_out and child.returncode is None
+    # Peak memory is the child's own: 200 MB touched shows, the parent's size does not.
+    big = run_child([sys.executable, "-c", "b = bytearray(200 << 20); import time; time.sleep(0.3)"],
+                    tmp_path / "log3", 30)
+    small = run_child([sys.executable, "-c", "import time; time.sleep(0.3)"], tmp_path / "log4", 30)
+    assert big.ok and big.peak_rss_mb > 200 and small.peak_rss_mb < 40
+
+
+def test_suites_cover_sensors_and_list_what_is_not_run(tmp_path, data):
+    quick = build_suite("quick", data, tmp_path)
+    full = build_suite("full", data, tmp_path)
+    keys = {c.key for c in quick.cases}
+    assert "euroc/V1_01_easy_micro:stereo:off" in keys and "kitti/06:stereo:li" in keys
+    assert "synth/rgbd_m3:rgbd:ddl" in keys and "synth/stereo_m3:stereo:li" in keys
+    assert not any(k.endswith("rgbd:li") for k in keys)  # li is stereo only
+    full_keys = {c.key for c in full.cases}
+    assert {"euroc/MH_05_difficult_head:mono:off", "synth/mono_m0:mono:off", "synth/rgbd_m0:rgbd:off"} <= full_keys
+    for suite in (quick, full):
+        assert any("fragment" in n["what"] and "not a sequence" in n["reason"] for n in suite.not_run)
+
+
+def test_peer_settings_and_manifest(tmp_path, data):
+    # EuRoC stereo: raw cameras, T_c1_c2 from our rectification; ORB settings as ours.
+    case = orbslam3.PeerCase("euroc", str(data / "euroc" / "V1_01_easy_micro"), "stereo", tmp_path / "euroc")
+    manifest = json.loads(orbslam3.prepare(case, tmp_path / "ORBvoc.txt").read_text())
+    import cv2
+    import numpy as np
+
+    fs = cv2.FileStorage(manifest["settings"], cv2.FILE_STORAGE_READ)
+    ours = orbslam3.read_settings(case.out / "ours.yaml")
+    assert fs.getNode("File.version").string() == "1.0" and fs.getNode("Camera.type").string() == "PinHole"
+    assert fs.getNode("ORBextractor.nFeatures").real() == ours["ORBextractor.nFeatures"]
+    assert fs.getNode("Camera1.fx").real() == pytest.approx(ours["LEFT"]["K"][0])
+    assert fs.getNode("Camera2.k1").real() == pytest.approx(ours["RIGHT"]["D"][0])
+    T = fs.getNode("Stereo.T_c1_c2").mat()
+    # EuRoC's cam0-cam1 baseline (sensor.yaml): 0.110 m, mostly along x.
+    assert np.linalg.norm(T[:3, 3]) == pytest.approx(0.1101, abs=1e-3) and T[0, 3] > 0.109
+    assert fs.getNode("Stereo.ThDepth").isReal()  # ORB-SLAM3 refuses an integer here
+    frames = manifest["frames"]
+    assert len(frames) == 95 and all(pathlib.Path(f["right"]).is_file() for f in frames)
+    assert "/cam1/" in frames[0]["right"] and pathlib.Path(frames[0]["right"]).name == pathlib.Path(frames[0]["image"]).name
+
+    # Rectified stereo (KITTI): identical cameras, pure x baseline.
+    kitti = orbslam3.orbslam3_settings(orbslam3.read_settings(_saved(data, "kitti", "kitti/sequences/06", "stereo",
+                                                                     tmp_path)), "stereo")
+    assert "Camera2.fx: 707.0912" in kitti and "Camera1.k1" not in kitti
+    assert "data: [1.0, 0.0, 0.0, 0.537" in kitti
+
+
+def test_peer_rgbd_manifest(tmp_path, synth_rgbd):
+    case = orbslam3.PeerCase("tum", str(synth_rgbd), "rgbd", tmp_path / "rgbd")
+    manifest = json.loads(orbslam3.prepare(case, tmp_path / "ORBvoc.txt").read_text())
+    text = pathlib.Path(manifest["settings"]).read_text()
+    assert "RGBD.DepthMapFactor: 5000.0" in text and "Stereo.b: 0.08" in text
+    assert len(manifest["frames"]) == 8
+    assert all(pathlib.Path(f["depth"]).is_file() and "depth" in f["depth"] for f in manifest["frames"])
+
+
+def _saved(data, kind, rel, sensor, tmp_path) -> pathlib.Path:
+    from dynaorb import core
+
+    path = tmp_path / f"{kind}.yaml"
+    core().open_dataset(kind, str(data / rel), sensor).default_settings().save(str(path))
+    return path
+
+
+def _record(case, system, preset, ate, ms, run=0):
+    return {"system": system, "case": case, "sequence": "s", "sensor": "stereo", "preset": preset, "run": run,
+            "out": "/nonexistent", "trajectory": "/nonexistent", "ate_rmse": ate, "ate_reason": None,
+            "rpe_trans_rmse": 0.01, "rpe_rot_rmse": 0.1, "tracked_fraction": 1.0, "frame_ms_median": ms,
+            "track_call_ms_median": ms, "fps": 10.0, "peak_rss_mb": 200.0,
+            "stage_ms_median": {"extract": ms / 2, "tracking": ms / 2, "frame_total": ms}}
+
+
+def test_report_renders_from_results(tmp_path):
+    records = [_record("s:stereo:off", "dynaorb", "off", 0.02, 40.0), _record("s:stereo:off", "dynaorb", "off", 0.04, 50.0, 1),
+               _record("s:stereo:orbslam3", "orbslam3", "off", 0.01, 60.0),
+               {**_record("s:stereo:li", "dynaorb", "li", None, 1.0), "error": "died of signal SIGSEGV\n..."}]
+    results = {"suite": "quick", "runs": 2, "records": records, "not_run": [{"what": "x", "reason": "why"}],
+               "peer": {"status": "run"}, "machine": {"cpus": 2}}
+    (tmp_path / "results.json").write_text(json.dumps(results))
+    path = report.write(report.load(tmp_path), tmp_path)
+    text = path.read_text()
+    # dynaorb's ATE median 0.03 over two runs (0.02-0.04), ORB-SLAM3 0.01: ratio 3.00; ms 45 / 60 = 0.75.
+    assert "| s | stereo | 0.0300 | 0.0100 | 3.00 | 45.0 | 60.0 | 0.75 |" in text
+    assert "0.0300 (0.0200-0.0400)" in text
+    assert "s:stereo:li: died of signal SIGSEGV" in text and "- x: why" in text
+
+
+def test_readme_section_is_replaced(tmp_path):
+    text = f"# T\n\nintro\n\n## Results\n\n{readme.BEGIN}\nold numbers\n{readme.END}\n\n## Layout\nrest\n"
+    new = readme.replace_section(text, "| new | table |")
+    assert "old numbers" not in new and "| new | table |" in new
+    assert new.startswith("# T\n\nintro") and new.endswith("## Layout\nrest\n")
+    assert readme.replace_section(new, "again").count(readme.BEGIN) == 1
+    with pytest.raises(ValueError):
+        readme.replace_section("# no markers\n", "x")
+    results = {"suite": "quick", "runs": 1, "records": [_record("s:stereo:off", "dynaorb", "off", 0.02, 40.0),
+                                                         _record("s:stereo:orbslam3", "orbslam3", "off", 0.01, 60.0)],
+               "not_run": [], "peer": {"status": "run"}, "machine": {"cpus": 2}}
+    (tmp_path / "results.json").write_text(json.dumps(results))
+    path = tmp_path / "README.md"
+    path.write_text(text)
+    readme.update_readme(path, tmp_path)
+    body = path.read_text()
+    assert "| s | stereo | 0.0200 | 0.0100 | 2.00 |" in body and "old numbers" not in body
+
+
+def test_real_peer_run(tmp_path, synth_rgbd):
+    """ORB-SLAM3 through pyorbslam3 on 8 synthetic RGB-D frames, when it can be installed here."""
+    try:
+        python = orbslam3.ensure_venv(log=lambda m: None)
+    except orbslam3.PeerUnavailable as exc:
+        pytest.skip(f"pyorbslam3 cannot be installed or loaded here: {exc}")
+    vocabulary = orbslam3.vocabulary_text("default")
+    stats = orbslam3.run(orbslam3.PeerCase("tum", str(synth_rgbd), "rgbd", tmp_path / "peer"), python, vocabulary,
+                         timeout_s=300)
+    assert "error" not in stats, stats.get("error")
+    assert stats["frames"] == 8 and stats["tracked_fraction"] > 0.5
+    assert stats["ate"] is not None and stats["ate"]["rmse"] < 0.25
+    assert stats["track_call_ms_median"] > 0 and stats["peak_rss_mb"] > 50
