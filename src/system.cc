@@ -208,7 +208,9 @@ struct System::Impl {
                                                                        : TrackingState::kNotInitialized;
       if (r.state == TrackingState::kLost) ++counters.lost;
       r.message = out.method == "init" ? (sensor == Sensor::kMono
-                                              ? "monocular initialisation: waiting for two views with enough matches and parallax"
+                                              ? "monocular initialisation: " + (out.init_status.empty()
+                                                    ? std::string("waiting for two views with enough matches and parallax")
+                                                    : out.init_status)
                                               : "not enough keypoints with depth to initialise")
                   : frame.size() == 0 ? "tracking lost: no keypoints (textureless or fully masked image)"
                                       : "tracking lost";
@@ -366,7 +368,7 @@ struct System::Impl {
     tracking::StageTimes t;
     std::shared_ptr<const map::Features> f;
     switch (sensor) {
-      case Sensor::kMono: f = builder->mono(grey, exclude, t, !tracker->initialized(), counting); break;
+      case Sensor::kMono: f = builder->mono(grey, exclude, t, tracker->wants_init_features(next_frame_id), counting); break;
       case Sensor::kStereo: f = builder->stereo(grey, grey_right, exclude, t, counting); break;
       case Sensor::kRGBD: f = builder->rgbd(grey, depth_m, exclude, t, counting); break;
     }

@@ -7,6 +7,7 @@
 // a median scene depth of 1 in the first keyframe, and both keyframes go to
 // the local mapper.
 #include <algorithm>
+#include <string>
 
 #include "dynaorb/optimize/bundle_adjuster.h"
 #include "dynaorb/tracking/tracker.h"
@@ -23,11 +24,15 @@ bool Tracker::initialize_mono(Frame& f) {
     if (f.size() > o_.mono_init_min_keypoints) {
       init_reference_ = f;
       init_prev_matched_.clear();
+      init_status_ = "new reference frame";
+    } else {
+      init_status_ = "too few keypoints for a reference (" + std::to_string(f.size()) + ")";
     }
     return false;
   }
   if (f.size() <= o_.mono_init_min_keypoints) {
     init_reference_ = Frame();  // ORB-SLAM2 drops the reference too
+    init_status_ = "too few keypoints (" + std::to_string(f.size()) + "), reference dropped";
     return false;
   }
   const Frame& ref = init_reference_;
@@ -39,6 +44,8 @@ bool Tracker::initialize_mono(Frame& f) {
     // reference; we take this one, which is as good and one frame earlier.
     init_reference_ = f;
     init_prev_matched_.clear();
+    init_status_ = "new reference frame: " + std::to_string(n) + " matches to the last one < " +
+                   std::to_string(o_.mono_init_min_matches);
     return false;
   }
   const map::Calibration& c = f.calib();
@@ -61,7 +68,10 @@ bool Tracker::initialize_mono(Frame& f) {
     if (matches12[i] >= 0) matches.emplace_back(i, matches12[i]);
   const TwoViewInitializer initializer(o_.two_view);
   const TwoViewResult r = initializer.initialize(K, uv_ref, uv_cur, matches, s2_ref, s2_cur);
-  if (!r.ok) return false;  // not yet: keep the reference, try the next frame
+  if (!r.ok) {  // not yet: keep the reference, try the next frame
+    init_status_ = std::to_string(n) + " matches: " + r.reason;
+    return false;
+  }
   return create_initial_map_mono(f, matches, r);
 }
 
@@ -130,6 +140,9 @@ bool Tracker::create_initial_map_mono(Frame& f, const std::vector<TwoViewMatch>&
   if (median <= 0 || kf_cur->tracked_points(1) < o_.mono_init_min_tracked) {
     // A bad initialisation: drop the map and start again from this frame
     // (ORB-SLAM2 resets and takes the next one).
+    init_status_ = "map refused after BA (median depth " + std::to_string(median) + ", " +
+                   std::to_string(kf_cur->tracked_points(1)) + " points, at least " +
+                   std::to_string(o_.mono_init_min_tracked) + " needed); new reference frame";
     map_.clear();
     init_reference_ = f;
     init_prev_matched_.clear();
@@ -159,6 +172,7 @@ bool Tracker::create_initial_map_mono(Frame& f, const std::vector<TwoViewMatch>&
   // outcome (track() returns it as the new keyframe).
   mapper_.insert_keyframe(kf_ini);
   start_tracking(f, {kf_cur, kf_ini});
+  init_frame_id_ = f.id;
   init_reference_ = Frame();
   init_prev_matched_.clear();
   return true;

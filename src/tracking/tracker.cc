@@ -52,6 +52,7 @@ void Tracker::reset() {
   temporal_points_.clear();
   init_reference_ = Frame();
   init_prev_matched_.clear();
+  init_frame_id_ = -1;
   keep_map_ = false;
   vo_ = false;
 }
@@ -66,8 +67,10 @@ TrackOutcome Tracker::track(Frame& f) {
   TrackOutcome out;
   std::lock_guard<std::mutex> lk(map_.mutex());
   if (!initialized_) {
+    init_status_.clear();
     out.ok = out.initialized = initialize(f);
     out.method = "init";
+    if (!out.ok) out.init_status = init_status_;
     if (out.ok) {
       out.new_keyframe = true;
       out.keyframe = out.reference = reference_;

@@ -94,12 +94,30 @@ struct TrackerOptions {
   // tracked; 3 -> frame 54, all tracked; 4 and 5 -> frame 8, from the first
   // centimetre of motion over the wooden platform, lost for good 16 frames on.
   int mono_init_feature_factor = 2;
+  // Frames after the one that made the monocular map that are still
+  // extracted with the larger feature count. ORB-SLAM3 (Tracking::
+  // GrabImageMonocular) keeps its 5x extractor while `lastID - initID <
+  // mMaxFrames`, lastID a frame id and initID the second keyframe's id, i.e.
+  // about the first fps frames of the sequence for the first map; we count
+  // frames from the initialisation instead. 0: ORB-SLAM2 (back to nFeatures
+  // at once). Measured on MH_05 with factor 5 (map at frame 8, from 6 mm of
+  // motion): 0 and 20 -> lost for good after frame 31 (tracked points fall
+  // from 164 to 31 once the frames have 1000 keypoints); 40 and 60 -> every
+  // later frame tracked, ATE 0.086 / 0.084 m (Sim3).
+  int mono_init_feature_frames = 0;
   int mono_init_min_keypoints = 100;  // reference and current frame: more keypoints than this
   double mono_init_window = 100.0;    // SearchForInitialization window, pixels
   double mono_init_nn_ratio = 0.9;    // best / second best descriptor distance
   int mono_init_min_matches = 100;    // fewer: the current frame becomes the new reference
+                                      // (ORB-SLAM2 and ORB-SLAM3 v1.0 alike: `nmatches < 100`)
   int mono_init_ba_iterations = 20;   // global BA of the two keyframes and their points
-  int mono_init_min_tracked = 100;    // points of the second keyframe after BA, else reset
+  // Points of the second keyframe after BA, else the map is refused and this
+  // frame becomes the reference: ORB-SLAM2's 100. ORB-SLAM3 (v1.0,
+  // CreateInitialMapMonocular: `TrackedMapPoints(1) < 50`, commented
+  // "originally 100 tracks") takes 50. MH_05, factor 2: 100 -> frame 85
+  // (maps from frames 58, 64, 71, 79 refused with 98, 96, 90, 80 points);
+  // 50 -> frame 58.
+  int mono_init_min_tracked = 100;
   TwoViewOptions two_view;            // H / F model selection and reconstruction
   RelocalizationOptions reloc;
 };
@@ -116,6 +134,9 @@ struct TrackOutcome {
   std::shared_ptr<map::KeyFrame> reference;
   Eigen::Isometry3d T_c_ref = Eigen::Isometry3d::Identity();
   double relocalization_ms = -1;  // time spent relocalising this frame; < 0: not tried
+  // Monocular initialisation: why this frame made no map (the reference was
+  // reset, the two views were refused and why, the map was refused after BA).
+  std::string init_status;
 };
 
 class Tracker {
@@ -130,6 +151,12 @@ class Tracker {
   TrackOutcome track(map::Frame& frame);
   void reset();
   bool initialized() const { return initialized_; }
+  // Monocular: whether frame frame_id should be extracted with the larger
+  // initialisation feature count (no map yet, or within
+  // mono_init_feature_frames frames of the frame that made it).
+  bool wants_init_features(long frame_id) const {
+    return !initialized_ || (init_frame_id_ >= 0 && frame_id - init_frame_id_ <= o_.mono_init_feature_frames);
+  }
   // The constant-velocity prediction of the next frame's T_cw (the motion
   // model's starting pose); empty unless the last two frames were tracked.
   std::optional<Eigen::Isometry3d> predicted_T_cw() const {
@@ -204,6 +231,8 @@ class Tracker {
   // where its keypoints were last matched.
   map::Frame init_reference_;
   std::vector<Eigen::Vector2d> init_prev_matched_;
+  long init_frame_id_ = -1;  // the frame that made the monocular map; -1: none
+  std::string init_status_;  // why the last frame made no monocular map (TrackOutcome::init_status)
 };
 
 }  // namespace dynaorb::tracking
