@@ -178,3 +178,27 @@ def test_real_peer_run(tmp_path, synth_rgbd):
     assert stats["frames"] == 8 and stats["tracked_fraction"] > 0.5
     assert stats["ate"] is not None and stats["ate"]["rmse"] < 0.25
     assert stats["track_call_ms_median"] > 0 and stats["peak_rss_mb"] > 50
+
+
+def test_network_runs_where_there_are_no_label_images(tmp_path, data):
+    """A sequence without label images (as the real ones): presets with a semantic stage run the network
+    asynchronously, and its time is recorded apart from the tracking thread's."""
+    import dataclasses
+
+    from dynaorb.bench.suite_runner import BenchOptions, run_suite
+
+    model = data.parent / "models" / "segmentation" / "deeplabv3_mnv2_dm05_pascal_quant.onnx"
+    if not model.is_file():
+        pytest.skip(f"model not found at {model}")
+    seq = synth_sequence("rgbd", 3, tmp_path / "synth", frames=12, seed=7, width=320, height=240, fx=262.5)
+    seq = dataclasses.replace(seq, name="unlabelled", labels=None)
+    cases, not_run = cases_for([seq], presets=("dm",))
+    run_suite(BenchOptions(out=str(tmp_path / "out"), runs=1, peer=False, segment_model=str(model)),
+              suite=Suite("net", cases, [seq], not_run), progress=lambda m: None)
+    records = {r["preset"]: r for r in json.loads((tmp_path / "out" / "results.json").read_text())["records"]}
+    dm = records["dm"]
+    assert not dm.get("error"), dm.get("error")
+    assert dm["labels"] == "network deeplabv3_mnv2_dm05_pascal_quant (async)"
+    assert dm["network"]["segmented"] > 0 and dm["network"]["inference_ms_median"] > 0
+    assert records["off"].get("network") is None
+    assert "ms/image on its own thread" in (tmp_path / "out" / "report.md").read_text()

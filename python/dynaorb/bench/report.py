@@ -58,15 +58,16 @@ def aggregate(records: list[dict]) -> list[dict]:
             "peak_rss_mb": _median(r.get("peak_rss_mb") for r in runs),
             "stage_ms_median": {k: statistics.median(v) for k, v in stage.items()},
             "dynamic_stages": dyn.get("stages") if dyn else None,
+            "network_ms_median": _median((r.get("network") or {}).get("inference_ms_median") for r in ok),
             "dynamic_ms_median": (dyn or {}).get("summary", {}).get("stage_ms_median", {}).get("dynamic") if dyn else None,
             "dynamic_keypoints_median": (dyn or {}).get("summary", {}).get("dynamic_keypoints_median") if dyn else None,
         })
     return rows
 
 
-def pairs(rows: list[dict]) -> list[dict]:
-    """dynaorb (off) against ORB-SLAM3 on each sequence both ran: ratios ours / theirs."""
-    ours = {(r["sequence"], r["sensor"]): r for r in rows if r["system"] == "dynaorb" and r["preset"] == "off"}
+def pairs(rows: list[dict], preset: str = "off") -> list[dict]:
+    """dynaorb (in `preset`) against ORB-SLAM3 (plain) on each sequence both ran: ratios ours / theirs."""
+    ours = {(r["sequence"], r["sensor"]): r for r in rows if r["system"] == "dynaorb" and r["preset"] == preset}
     out = []
     for r in rows:
         if r["system"] != "orbslam3":
@@ -150,7 +151,10 @@ def preset_table(ps: list[dict]) -> list[str]:
     for p in ps:
         r, o = p["row"], p["off"]
         stages = ", ".join(r["dynamic_stages"] or [])
-        labels = "label images" if r["labels"] else "none"
+        labels = r["labels"] if r["labels"] and r["labels"].startswith("network") else \
+            "label images" if r["labels"] else "none"
+        if r.get("network_ms_median") is not None:
+            labels += f", {r['network_ms_median']:.0f} ms/image on its own thread"
         lines.append(f"| {r['sequence']} | {r['sensor']} | {r['preset']} ({stages}) | {labels} | "
                      f"{_f(r['ate_rmse'], '{:.4f}')} | {_f(o['ate_rmse'], '{:.4f}')} | {_f(p['ate_ratio'], '{:.2f}')} | "
                      f"{_f(r['frame_ms_median'], '{:.1f}')} | {_f(o['frame_ms_median'], '{:.1f}')} | "
@@ -294,11 +298,12 @@ def render(results: dict, out: pathlib.Path, plots: dict | None = None, stages_p
              "- fps: frames over the whole loop's wall time (image loading included). Peak MB: the run's process "
              "(VmHWM of its own address space), for ORB-SLAM3 the worker's python process.",
              "- ATE: evo, SE3 alignment (Sim3 for monocular), RMSE of the position error; RPE per frame.",
-             "- Semantic stages read the sequences' label images (synthetic: PASCAL VOC ids as a network would "
-             "output, parked car included); the segmentation network itself is not run in these suites "
-             "(`dynaorb bench --suite segmentation` measures its latency, asynchronous on its own thread). Real "
-             "sequences have no label images: there the semantic stage marks nothing and only the presets' "
-             "geometric stages act.",
+             "- Semantic stages read the synthetic sequences' label images (PASCAL VOC ids as a network would "
+             "output, parked car included). Real sequences have none: there the segmentation network runs "
+             "asynchronously on its own thread (masks of older frames propagated by optical flow, as on a live "
+             "camera), and its ms per image are given apart (labels column of the presets table); without a "
+             "model (--no-network) the semantic stage marks nothing there. `dynaorb bench --suite "
+             "segmentation` measures the network's latency per back end and thread count.",
              f"- ORB-SLAM3 peer: {peer.get('status', 'n/a')}"
              + (f" ({peer.get('package')}, own venv {peer.get('venv')}, our vocabulary as ORBvoc.txt "
                 f"{peer.get('vocabulary')}); the same image files, calibration and ORB settings (features, "
@@ -311,9 +316,10 @@ def render(results: dict, out: pathlib.Path, plots: dict | None = None, stages_p
     failed = [r for r in rows if r["errors"]]
     if failed:
         lines += ["## Failed runs", ""] + [f"- {r['case']}: {e}" for r in failed for e in r["errors"]] + [""]
-    ps = pairs(rows)
-    if ps:
-        lines += ["## dynaorb (off) against ORB-SLAM3", "", *pair_table(ps), ""]
+    for preset in ("off", "full"):
+        ps = pairs(rows, preset)
+        if ps:
+            lines += [f"## dynaorb ({preset}) against ORB-SLAM3 (plain)", "", *pair_table(ps), ""]
     lines += ["## Every case", "", *case_table(rows), ""]
     pv = preset_vs_off(rows)
     if pv:

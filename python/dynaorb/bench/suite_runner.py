@@ -40,6 +40,10 @@ class BenchOptions:
     vocabulary: str = "default"
     synth_root: str | None = None   # cache of the rendered synthetic sequences (default OUT/synth)
     timeout_s: float = RUN_TIMEOUT_S
+    # Segmentation model for the presets with a semantic stage on sequences
+    # without label images (the real ones): run asynchronously, as on a live
+    # camera, its time reported apart from the tracking thread's. None: no network.
+    segment_model: str | None = None
 
 
 def _slug(text: str) -> str:
@@ -52,15 +56,20 @@ def _ours_record(case: Case, run: int, out: pathlib.Path, opts: BenchOptions) ->
     spec = {"kind": seq.kind, "path": seq.path, "sensor": seq.sensor, "out": str(out), "dynamic": case.preset,
             "vocabulary": opts.vocabulary, "synchronous_mapping": False, "result": str(out / "result.json")}
     # The semantic stage reads the label images; presets without it (li) run without labels.
-    if case.preset != "off" and seq.labels and _has_semantic(case.preset, seq.sensor):
-        spec["labels"] = seq.labels
+    if case.preset != "off" and _has_semantic(case.preset, seq.sensor):
+        if seq.labels:
+            spec["labels"] = seq.labels
+        elif opts.segment_model:
+            spec.update(segment=opts.segment_model, segment_mode="async", segment_threads=1)
     (out / "spec.json").write_text(json.dumps(spec, indent=1))
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in [str(pathlib.Path(__file__).resolve().parents[2]),
                                                                 os.environ.get("PYTHONPATH", "")] if p))
     child = run_child([sys.executable, "-m", "dynaorb.bench.child", str(out / "spec.json")], out / "run.log",
                       opts.timeout_s, env=env)
     record = {"system": "dynaorb", "case": case.key, "sequence": seq.name, "sensor": seq.sensor,
-              "preset": case.preset, "run": run, "out": str(out), "labels": spec.get("labels"),
+              "preset": case.preset, "run": run, "out": str(out),
+              "labels": spec.get("labels") or (f"network {pathlib.Path(spec['segment']).stem} (async)"
+                                               if spec.get("segment") else None),
               "trajectory": str(out / "trajectory.tum"),
               "peak_rss_mb": child.peak_rss_mb, "process_wall_s": child.wall_s}
     result = out / "result.json"
@@ -72,6 +81,11 @@ def _ours_record(case: Case, run: int, out: pathlib.Path, opts: BenchOptions) ->
         record["stats"] = {k: stats.get(k) for k in ("frames", "tracked_frames", "init_frame", "states",
                                                       "lost_frames", "relocalizations", "map", "wall_s",
                                                       "frames_rejected", "frames_skipped")}
+        seg = stats.get("segmentation")
+        # The network's own time, on its thread (not inside the tracking thread's ms).
+        record["network"] = None if not seg else {k: seg.get(k) for k in (
+            "model", "inference_ms_median", "propagate_ms_median", "age_median", "segmented", "dropped_unseen",
+            "failures")}
         dyn = stats.get("dynamic_filter")
         record["dynamic_filter"] = None if not dyn else {k: dyn.get(k) for k in (
             "stages", "labels", "summary", "all_dynamic_frames", "stage_failures")}

@@ -136,12 +136,33 @@ def cmd_bench(args) -> int:
         from dynaorb.bench.suite_runner import BenchOptions, run_suite
 
         run_suite(BenchOptions(suite=args.suite, out=args.out, runs=args.runs or 3, peer=not args.no_peer,
-                               peer_venv=args.peer_venv))
+                               peer_venv=args.peer_venv, segment_model=_bench_network(args)))
         print((out / "report.md").read_text())
         if args.readme:
             _write_readme(out)
         return 0
     return _bench_segmentation(args)
+
+
+def _bench_network(args) -> str | None:
+    """The segmentation model the quick/full suites run on sequences without label images: --model, else
+    the dm05 PASCAL model of --models (default ../shared/models/segmentation, else the cache); None with
+    --no-network or when there is none (the report then says the semantic stage saw no labels)."""
+    if args.no_network:
+        return None
+    if args.model:
+        return args.model
+    from dynaorb.segmentation import cache_dir
+    from dynaorb.synth.textures import default_texture_dir
+
+    data = default_texture_dir()
+    folders = [pathlib.Path(args.models)] if args.models else (
+        ([data.parent / "models" / "segmentation"] if data is not None else []) + [cache_dir()])
+    for folder in folders:
+        for name in ("deeplabv3_mnv2_dm05_pascal_quant.onnx", "deeplabv3_mnv2_dm05_pascal_quant.tflite"):
+            if (folder / name).is_file():
+                return str(folder / name)
+    return None
 
 
 def _write_readme(out: pathlib.Path) -> None:

@@ -148,7 +148,11 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--report-only", action="store_true",
                    help="render OUT/report.md again from OUT/results.json without running anything")
     b.add_argument("--models", help="folder of models (default ../shared/models/segmentation, else the cache)")
-    b.add_argument("--model", help="model for the SLAM runs (default the dm05 PASCAL model of --models)")
+    b.add_argument("--model", help="model for the SLAM runs (default the dm05 PASCAL model of --models); "
+                                   "quick/full: run asynchronously for the presets with a semantic stage on "
+                                   "sequences without label images")
+    b.add_argument("--no-network", action="store_true",
+                   help="quick/full: no segmentation network (the semantic stage sees no labels on real data)")
     b.add_argument("--sequence", nargs=2, metavar=("KIND", "PATH"),
                    help="sequence for the SLAM runs (default: a synthetic 60-frame RGB-D sequence)")
     b.set_defaults(func=commands.cmd_bench)
