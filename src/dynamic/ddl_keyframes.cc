@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
 
 namespace dynaorb::dynamic::ddl {
 
@@ -87,25 +88,30 @@ void smooth(const cv::Mat& in, cv::Mat& out, const DdlOptions& o) {
 
 }  // namespace
 
-std::shared_ptr<const KeyframeMaps> prepare_keyframe_maps(const FrameData& f, const DdlOptions& o) {
-  if (f.depth.empty() || f.depth.type() != CV_32FC1) return nullptr;
-  auto m = std::make_shared<KeyframeMaps>();
+void prepare_keyframe_maps(const FrameData& f, const DdlOptions& o, bool check, bool pyramid, KeyframeMaps& m) {
+  if (pyramid && !m.pyramid_made) {
+    m.pyramid_made = true;
+    if (!f.grey.empty() && f.grey.type() == CV_8UC1)
+      cv::buildOpticalFlowPyramid(f.grey, m.pyramid, kRefineWindow, kRefineLevels);
+  }
+  if (!check || m.check) return;
+  m.check = true;
+  if (f.depth.empty() || f.depth.type() != CV_32FC1) return;
   // The keyframe's nearest and farthest depth around where P lands: a
   // projection a pixel off a depth edge still finds P's surface (DynaSLAM's
   // code searches a window for z' likewise).
   const float far = std::numeric_limits<float>::max();
-  f.depth.copyTo(m->depth);
-  cv::patchNaNs(m->depth, 0);
-  const cv::Mat holes = m->depth <= 0;
-  cv::Mat min_src = m->depth.clone();
+  f.depth.copyTo(m.depth);
+  cv::patchNaNs(m.depth, 0);
+  const cv::Mat holes = m.depth <= 0;
+  cv::Mat min_src = m.depth.clone();
   min_src.setTo(far, holes);
   const int r = std::max(0, o.confirm_search_radius_px);
   const cv::Mat window = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * r + 1, 2 * r + 1));
-  cv::erode(min_src, m->depth_min, window);
-  cv::dilate(m->depth, m->depth_max, window);
+  cv::erode(min_src, m.depth_min, window);
+  cv::dilate(m.depth, m.depth_max, window);
   if (o.confirm_min_zncc > -1 && !f.grey.empty() && f.grey.size() == f.depth.size() && f.grey.type() == CV_8UC1)
-    smooth(f.grey, m->grey, o);
-  return m;
+    smooth(f.grey, m.grey, o);
 }
 
 KeyframeEvidence::KeyframeEvidence(const cv::Mat& depth, const cv::Mat& grey,
@@ -128,12 +134,15 @@ KeyframeEvidence::KeyframeEvidence(const cv::Mat& depth, const cv::Mat& grey,
   }
   const cv::Size size = depth.size();
   for (const Reference& r : refs) {
-    if (!r.dense || !r.maps) continue;
+    if (!r.dense || !r.maps || r.maps->depth.empty()) continue;
     Warped wk;
     wk.ref = &r;
     wk.agree = cv::Mat(size, CV_8UC1, cv::Scalar(0));
     wk.through = cv::Mat(size, CV_8UC1, cv::Scalar(0));
-    if (texture_ && !r.maps->grey.empty()) wk.grey = cv::Mat(size, CV_32FC1, cv::Scalar(0));
+    if (texture_ && !r.maps->grey.empty()) {
+      wk.grey = cv::Mat(size, CV_32FC1, cv::Scalar(0));
+      wk.usable = cv::Mat(size, CV_8UC1, cv::Scalar(0));
+    }
     warped_.push_back(std::move(wk));
   }
   tiles_x_ = (size.width + kTile - 1) / kTile;
@@ -226,6 +235,12 @@ void KeyframeEvidence::warp_tile(Warped& wk, const cv::Rect& tile) {
   if (!wk.grey.empty()) {
     cv::Mat out = wk.grey(tile);  // remap writes into the tile: same size and type
     cv::remap(km.grey, out, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0));
+    for (int j = 0; j < tile.height; ++j) {
+      const unsigned char* a = wk.agree.ptr<unsigned char>(tile.y + j) + tile.x;
+      const unsigned char* e = edge_.ptr<unsigned char>(tile.y + j) + tile.x;
+      unsigned char* ok = wk.usable.ptr<unsigned char>(tile.y + j) + tile.x;
+      for (int i = 0; i < tile.width; ++i) ok[i] = a[i] == 2 && !e[i];
+    }
   }
 }
 
@@ -260,18 +275,20 @@ bool KeyframeEvidence::texture_agrees(const Warped& wk, int x, int y) const {
   int n = 0;
   for (int v = std::max(0, y - pr); v <= std::min(depth_.rows - 1, y + pr); ++v) {
     const float* d = depth_.ptr<float>(v);
-    const unsigned char* a = wk.agree.ptr<unsigned char>(v);
+    const unsigned char* ok = wk.usable.ptr<unsigned char>(v);
     const float* gk = wk.grey.ptr<float>(v);
     const float* gc = grey_.ptr<float>(v);
-    const unsigned char* e = edge_.ptr<unsigned char>(v);
+    // Branch-free: a pixel left out adds exact zeros, so the sums are those
+    // of the pixels taken, in the same order.
     for (int u = std::max(0, x - pr); u <= std::min(depth_.cols - 1, x + pr); ++u) {
-      if (a[u] != 2 || e[u] || std::abs(d[u] - z0) > tau) continue;
-      sk += gk[u];
-      sc += gc[u];
-      skk += gk[u] * gk[u];
-      scc += gc[u] * gc[u];
-      skc += gk[u] * gc[u];
-      ++n;
+      const bool use = ok[u] && !(std::abs(d[u] - z0) > tau);
+      const float k = use ? gk[u] : 0.f, c = use ? gc[u] : 0.f;
+      sk += k;
+      sc += c;
+      skk += k * k;
+      scc += c * c;
+      skc += k * c;
+      n += use;
     }
   }
   if (4 * n < (2 * pr + 1) * (2 * pr + 1)) return true;

@@ -24,10 +24,20 @@ struct KeyframeMaps {
                       //   (FLT_MAX where the window holds none)
   cv::Mat depth_max;  // greatest depth in the window (0 where none)
   cv::Mat grey;       // CV_32FC1 smoothed grey; empty without a usable grey image or texture test
+  bool check = false;  // the four above are made
+  // The keyframe grey's LK pyramid (with derivatives) for refine_pose; empty
+  // when not made or without a usable grey image.
+  std::vector<cv::Mat> pyramid;
+  bool pyramid_made = false;
 };
 
-// Null when the keyframe has no depth image.
-std::shared_ptr<const KeyframeMaps> prepare_keyframe_maps(const FrameData& f, const DdlOptions& o);
+// refine_pose's Lucas-Kanade window and pyramid levels above the image.
+inline const cv::Size kRefineWindow(21, 21);
+constexpr int kRefineLevels = 3;
+
+// Makes what `m` lacks of the check images (check) and the LK pyramid
+// (pyramid) for frame `f`. Without a depth image the check images stay empty.
+void prepare_keyframe_maps(const FrameData& f, const DdlOptions& o, bool check, bool pyramid, KeyframeMaps& m);
 
 // One reference keyframe: its keypoints as world points, where they fall in
 // the current image, and what the keyframe check needs.
@@ -96,6 +106,7 @@ class KeyframeEvidence {
                       //   (1; 2: and its window lies on one surface)
     cv::Mat through;  // CV_8UC1: the keyframe saw beyond P's place
     cv::Mat grey;     // CV_32FC1: the keyframe's (smoothed) grey where P lands, empty without texture
+    cv::Mat usable;   // CV_8UC1 (with grey): agree == 2 and no current depth edge, the texture test's pixels
   };
   static constexpr int kTile = 32;  // px, square
 

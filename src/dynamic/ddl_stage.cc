@@ -124,7 +124,8 @@ cv::Mat ddl_grow_regions(const cv::Mat& depth, const std::vector<cv::Point>& see
 void DdlStage::reset() { keyframe_maps_.clear(); }
 
 std::shared_ptr<const ddl::KeyframeMaps> DdlStage::keyframe_maps(const std::shared_ptr<const FrameData>& frame,
-                                                                 const std::vector<KeyFrameData>& keyframes) {
+                                                                 const std::vector<KeyFrameData>& keyframes,
+                                                                 bool check, bool pyramid) {
   // Frames no longer among the keyframes are not asked for again.
   keyframe_maps_.erase(std::remove_if(keyframe_maps_.begin(), keyframe_maps_.end(),
                                       [&](const auto& e) {
@@ -132,11 +133,11 @@ std::shared_ptr<const ddl::KeyframeMaps> DdlStage::keyframe_maps(const std::shar
                                                             [&](const KeyFrameData& k) { return k.frame == e.first; });
                                       }),
                        keyframe_maps_.end());
-  for (const auto& [f, maps] : keyframe_maps_)
-    if (f == frame) return maps;
-  auto maps = ddl::prepare_keyframe_maps(*frame, o_);
-  keyframe_maps_.emplace_back(frame, maps);
-  return maps;
+  auto it = std::find_if(keyframe_maps_.begin(), keyframe_maps_.end(), [&](const auto& e) { return e.first == frame; });
+  if (it == keyframe_maps_.end())
+    it = keyframe_maps_.insert(keyframe_maps_.end(), {frame, std::make_shared<ddl::KeyframeMaps>()});
+  ddl::prepare_keyframe_maps(*frame, o_, check, pyramid, *it->second);
+  return it->second;
 }
 
 void DdlStage::process(Context& ctx, StageReport& report) {
@@ -230,6 +231,7 @@ void DdlStage::process(Context& ctx, StageReport& report) {
   report.values["pose_refined"] = 0;
   auto t_part = Clock::now();
   if (o_.refine_pose) {
+    for (Reference& r : refs) r.maps = keyframe_maps(r.kf->frame, *ctx.keyframes, false, true);
     std::optional<Eigen::Isometry3d> refined;
     try {
       refined = ddl::refine_pose(refs, cur.grey, calib, *T_cw, o_, report);
@@ -261,7 +263,7 @@ void DdlStage::process(Context& ctx, StageReport& report) {
     if (!keyframe_evidence) {
       const auto t0 = Clock::now();
       for (Reference& r : refs)
-        if (r.dense) r.maps = keyframe_maps(r.kf->frame, *ctx.keyframes);
+        if (r.dense) r.maps = keyframe_maps(r.kf->frame, *ctx.keyframes, true, false);
       keyframe_evidence.emplace(cur.depth, cur.grey, rays_, refs, camera, o_);
       evidence_ms = ms_since(t0);
     }

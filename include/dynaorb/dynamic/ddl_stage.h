@@ -223,20 +223,23 @@ class DdlStage : public Stage {
   const DdlOptions& options() const { return o_; }
 
  private:
-  // The prepared images of a keyframe's frame (from the cache, else made now).
+  // The prepared images of a keyframe's frame (from the cache; what it
+  // lacks of the check images / the LK pyramid is made now).
   std::shared_ptr<const ddl::KeyframeMaps> keyframe_maps(const std::shared_ptr<const FrameData>& frame,
-                                                         const std::vector<KeyFrameData>& keyframes);
+                                                         const std::vector<KeyFrameData>& keyframes, bool check,
+                                                         bool pyramid);
 
   DdlOptions o_;
   // Rays of every current pixel, kept while the calibration and size stay.
   std::shared_ptr<const map::Calibration> rays_calib_;
   cv::Size rays_size_;
   std::vector<cv::Point2f> rays_;
-  // The keyframe check's per-keyframe images (ddl::KeyframeMaps), prepared
-  // once per keyframe: a keyframe stays a reference for many frames. Holds
-  // the keyframes' frames, so an entry's address is never another frame's;
-  // entries of frames no longer among the keyframes are dropped each frame.
-  std::vector<std::pair<std::shared_ptr<const FrameData>, std::shared_ptr<const ddl::KeyframeMaps>>> keyframe_maps_;
+  // The keyframe check's per-keyframe images and refine_pose's LK pyramid
+  // (ddl::KeyframeMaps), prepared once per keyframe: a keyframe stays a
+  // reference for many frames. Holds the keyframes' frames, so an entry's
+  // address is never another frame's; entries of frames no longer among the
+  // keyframes are dropped.
+  std::vector<std::pair<std::shared_ptr<const FrameData>, std::shared_ptr<ddl::KeyframeMaps>>> keyframe_maps_;
 };
 
 // Region growing from `seeds` over `depth` (CV_32FC1 metres) with the
