@@ -280,8 +280,11 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
       const auto t0 = Clock::now();
       if (previous && calib_) {
         try {
-          tracked = track_points(*previous, current, *calib_, sensor_, o_.motion_cues);
+          tracked = track_points(*previous, current, *calib_, sensor_, o_.motion_cues, &motion_cue_cache_);
+          res.motion_cue_ms = motion_cue_cache_.ms;
+          const auto t_ego = Clock::now();
           ego = estimate_ego_motion(tracked, *calib_, sensor_, o_.motion_cues);
+          res.motion_cue_ms["ego"] = ms_since(t_ego);
         } catch (const std::exception& e) {  // documented never to throw: a bug, the stages see no cues
           tracked.clear();
           ego = EgoMotion();
@@ -352,6 +355,7 @@ void DynamicFilter::reset() {
   previous_.reset();
   last_.reset();
   keyframes_.clear();
+  motion_cue_cache_ = MotionCueCache();
   for (auto& s : stages_) s->reset();
 }
 

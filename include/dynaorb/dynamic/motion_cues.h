@@ -3,7 +3,9 @@
 // filter: corners tracked from the previous into the current image
 // (TrackedPoint) and the camera's ego-motion estimated from the points
 // outside the movable-class regions (EgoMotion). Both are in stage.h.
+#include <map>
 #include <opencv2/core.hpp>
+#include <string>
 #include <vector>
 
 #include "dynaorb/core/sensor.h"
@@ -56,6 +58,19 @@ struct MotionCueOptions {
   void read(const cv::FileNode& node);
 };
 
+// What track_points keeps from one call to the next: the current image's
+// LK pyramid, which is the next call's previous image's (same result as
+// building it from the image again). Also the time of its parts.
+struct MotionCueCache {
+  cv::Mat image;  // holds the buffer: no other image can have its address while cached
+  std::vector<cv::Mat> pyramid;
+  int window = 0, levels = -1;
+  // Wall time (ms) of the last call's parts: corners (detection and
+  // sub-pixel refinement), pyramids, flow (LK forward-backward), stereo (LK
+  // into the right image; 0 when not run).
+  std::map<std::string, double> ms;
+};
+
 // Harris corners on prev.grey, followed by pyramidal LK into cur.grey with a
 // forward-backward check; pairs with either end within `border` of the image
 // edge are rejected. prev_depth comes from prev.depth (CV_32FC1 metres) when
@@ -64,10 +79,12 @@ struct MotionCueOptions {
 // else 0. Depth-image corners on a depth edge get 0 (depth_edge_* options).
 // in_candidate: inside prev.candidates at prev or cur.candidates at cur
 // (either may be empty). Pixels are raw (possibly distorted) image pixels.
-// Degenerate input (empty or mismatched images) gives no points.
+// Degenerate input (empty or mismatched images) gives no points. cache
+// (optional): reuses the previous call's current-image pyramid when prev.grey
+// is that image, and keeps cur.grey's for the next call.
 std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& cur,
                                        const map::Calibration& calib, Sensor sensor,
-                                       const MotionCueOptions& o);
+                                       const MotionCueOptions& o, MotionCueCache* cache = nullptr);
 
 // Ego-motion from the points with in_candidate == false only (DM-SLAM Sec.
 // 3.2.3): stereo / RGB-D: solvePnPRansac on the undistorted points with their
