@@ -272,6 +272,10 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
 
   Context ctx{sensor_, calib_, current, previous, cv::Mat::zeros(size, CV_8UC1), nullptr, nullptr,
               T_cw_predicted, &keyframes_};
+  // This frame is the next one's previous frame: its corners are detected
+  // now, beside this frame's stages and SLAM's work on it.
+  if (calib_ && std::any_of(stages_.begin(), stages_.end(), [](const auto& s) { return s->needs_motion_cues(); }))
+    detect_corners_ahead(current.grey, o_.motion_cues, motion_cue_cache_);
   std::vector<TrackedPoint> tracked;
   EgoMotion ego;
   for (const auto& stage : stages_) {

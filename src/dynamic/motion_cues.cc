@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <future>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
@@ -169,6 +170,31 @@ std::vector<cv::Point2f> undistorted(const std::vector<cv::Point2f>& px, const m
 
 }  // namespace
 
+std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOptions& o) {
+  std::vector<cv::Point2f> corners;
+  const int border = std::max(o.border, 0);
+  if (!is_grey(grey) || grey.cols <= 2 * border + 1 || grey.rows <= 2 * border + 1) return corners;
+  // Corners only where they could survive the edge rejection, so the corner
+  // budget is not spent on pairs that are dropped anyway.
+  cv::Mat detect_mask(grey.size(), CV_8UC1, cv::Scalar(0));
+  detect_mask(cv::Rect(border, border, grey.cols - 2 * border, grey.rows - 2 * border)).setTo(255);
+  cv::goodFeaturesToTrack(grey, corners, std::max(o.max_corners, 1), std::clamp(o.quality_level, 1e-6, 1.0),
+                          std::max(o.min_distance, 0.0), detect_mask, std::max(o.block_size, 1), o.use_harris,
+                          o.harris_k);
+  if (!corners.empty() && o.subpix_window > 0) {
+    refine_corners(grey, corners, o.subpix_window);
+    corners = without_duplicates(corners, std::max(1.0, o.min_distance / 2));
+  }
+  return corners;
+}
+
+void detect_corners_ahead(const cv::Mat& grey, const MotionCueOptions& o, MotionCueCache& cache) {
+  cache.corners_image = std::move(cache.next_corners_image);
+  cache.corners = std::move(cache.next_corners);
+  cache.next_corners_image = grey;
+  cache.next_corners = std::async(std::launch::async, [grey, o] { return detect_corners(grey, o); }).share();
+}
+
 std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& cur,
                                        const map::Calibration& calib, Sensor sensor,
                                        const MotionCueOptions& o, MotionCueCache* cache) {
@@ -181,19 +207,10 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
 
   try {
     auto t0 = Clock::now();
-    // Corners only where they could survive the edge rejection, so the corner
-    // budget is not spent on pairs that are dropped anyway.
-    cv::Mat detect_mask(size, CV_8UC1, cv::Scalar(0));
-    detect_mask(cv::Rect(border, border, size.width - 2 * border, size.height - 2 * border)).setTo(255);
-    std::vector<cv::Point2f> corners;
-    cv::goodFeaturesToTrack(prev.grey, corners, std::max(o.max_corners, 1),
-                            std::clamp(o.quality_level, 1e-6, 1.0), std::max(o.min_distance, 0.0),
-                            detect_mask, std::max(o.block_size, 1), o.use_harris, o.harris_k);
+    const bool ahead = cache && cache->corners.valid() && cache->corners_image.data == prev.grey.data &&
+                       cache->corners_image.size() == size;
+    const std::vector<cv::Point2f> corners = ahead ? cache->corners.get() : detect_corners(prev.grey, o);
     if (corners.empty()) return out;
-    if (o.subpix_window > 0) {
-      refine_corners(prev.grey, corners, o.subpix_window);
-      corners = without_duplicates(corners, std::max(1.0, o.min_distance / 2));
-    }
     if (cache) cache->ms["corners"] = ms_since(t0);
 
     t0 = Clock::now();

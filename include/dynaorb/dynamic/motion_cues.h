@@ -3,6 +3,7 @@
 // filter: corners tracked from the previous into the current image
 // (TrackedPoint) and the camera's ego-motion estimated from the points
 // outside the movable-class regions (EgoMotion). Both are in stage.h.
+#include <future>
 #include <map>
 #include <opencv2/core.hpp>
 #include <string>
@@ -58,18 +59,39 @@ struct MotionCueOptions {
   void read(const cv::FileNode& node);
 };
 
-// What track_points keeps from one call to the next: the current image's
-// LK pyramid, which is the next call's previous image's (same result as
-// building it from the image again). Also the time of its parts.
+// What track_points keeps from one call to the next, for one set of
+// options: the current image's LK pyramid, which is the next call's previous
+// image's (same result as building it from the image again), and the
+// corners of the next previous image, detected ahead on another thread
+// (detect_corners_ahead). Also the time of its parts.
 struct MotionCueCache {
   cv::Mat image;  // holds the buffer: no other image can have its address while cached
   std::vector<cv::Mat> pyramid;
   int window = 0, levels = -1;
+  // The corners of the image the next track_points call starts from
+  // (corners_image, held likewise), and those being detected for the call
+  // after it.
+  cv::Mat corners_image, next_corners_image;
+  std::shared_future<std::vector<cv::Point2f>> corners, next_corners;
   // Wall time (ms) of the last call's parts: corners (detection and
-  // sub-pixel refinement), pyramids, flow (LK forward-backward), stereo (LK
-  // into the right image; 0 when not run).
+  // sub-pixel refinement, or the wait for them when detected ahead),
+  // pyramids, flow (LK forward-backward), stereo (LK into the right image;
+  // absent when not run).
   std::map<std::string, double> ms;
 };
+
+// The corners track_points tracks from an image: goodFeaturesToTrack
+// inside the border, cornerSubPix, near-duplicates removed. May throw
+// cv::Exception on options OpenCV refuses.
+std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOptions& o);
+
+// Starts detect_corners(grey) on another thread, for the track_points call
+// whose previous image is `grey` (the next frame's): the detection depends on
+// that image alone, so it overlaps the rest of this frame's work. Same
+// corners as detecting them then. Call it once per frame before that
+// frame's track_points: the corners started at the last call move to the
+// slot track_points reads.
+void detect_corners_ahead(const cv::Mat& grey, const MotionCueOptions& o, MotionCueCache& cache);
 
 // Harris corners on prev.grey, followed by pyramidal LK into cur.grey with a
 // forward-backward check; pairs with either end within `border` of the image
