@@ -271,56 +271,24 @@ bool KeyframeEvidence::texture_agrees(const Warped& wk, int x, int y) const {
   const int pr = std::max(0, o_.confirm_patch_radius_px);
   const float z0 = depth_.at<float>(y, x);
   const float tau = static_cast<float>(o_.depth_threshold_m);
-  const int v0 = std::max(0, y - pr), v1 = std::min(depth_.rows - 1, y + pr);
-  const int u0 = std::max(0, x - pr), u1 = std::min(depth_.cols - 1, x + pr);
-  // Four partial sums per moment, so the additions do not wait on each
-  // other. With every grey value 0 or in [1/16, 256] and at most 64 patch
-  // pixels each sum is exact in double (terms are multiples of 2^-31, sums
-  // below 2^22), so the order does not change it: the result is that of one
-  // sum in pixel order. Darker values (never on real images) or larger
-  // patches take that one sum.
-  double sk4[4] = {0, 0, 0, 0}, sc4[4] = {0, 0, 0, 0}, skk4[4] = {0, 0, 0, 0}, scc4[4] = {0, 0, 0, 0},
-         skc4[4] = {0, 0, 0, 0};
+  double sk = 0, sc = 0, skk = 0, scc = 0, skc = 0;
   int n = 0;
-  bool exact = (v1 - v0 + 1) * (u1 - u0 + 1) <= 64;
-  const auto in_range = [](float g) { return g == 0.f || (std::abs(g) >= 0.0625f && std::abs(g) <= 256.f); };
-  for (int v = v0; v <= v1; ++v) {
+  for (int v = std::max(0, y - pr); v <= std::min(depth_.rows - 1, y + pr); ++v) {
     const float* d = depth_.ptr<float>(v);
     const unsigned char* ok = wk.usable.ptr<unsigned char>(v);
     const float* gk = wk.grey.ptr<float>(v);
     const float* gc = grey_.ptr<float>(v);
-    // Branch-free: a pixel left out adds exact zeros.
-    for (int u = u0; u <= u1; ++u) {
+    // Branch-free: a pixel left out adds exact zeros, so the sums are those
+    // of the pixels taken, in the same order.
+    for (int u = std::max(0, x - pr); u <= std::min(depth_.cols - 1, x + pr); ++u) {
       const bool use = ok[u] && !(std::abs(d[u] - z0) > tau);
       const float k = use ? gk[u] : 0.f, c = use ? gc[u] : 0.f;
-      const int l = (u - u0) & 3;
-      sk4[l] += k;
-      sc4[l] += c;
-      skk4[l] += k * k;
-      scc4[l] += c * c;
-      skc4[l] += k * c;
+      sk += k;
+      sc += c;
+      skk += k * k;
+      scc += c * c;
+      skc += k * c;
       n += use;
-      exact = exact && in_range(k) && in_range(c);
-    }
-  }
-  double sk = (sk4[0] + sk4[1]) + (sk4[2] + sk4[3]), sc = (sc4[0] + sc4[1]) + (sc4[2] + sc4[3]);
-  double skk = (skk4[0] + skk4[1]) + (skk4[2] + skk4[3]), scc = (scc4[0] + scc4[1]) + (scc4[2] + scc4[3]);
-  double skc = (skc4[0] + skc4[1]) + (skc4[2] + skc4[3]);
-  if (!exact) {
-    sk = sc = skk = scc = skc = 0;
-    for (int v = v0; v <= v1; ++v) {
-      const float* d = depth_.ptr<float>(v);
-      const unsigned char* ok = wk.usable.ptr<unsigned char>(v);
-      const float* gk = wk.grey.ptr<float>(v);
-      const float* gc = grey_.ptr<float>(v);
-      for (int u = u0; u <= u1; ++u) {
-        if (!ok[u] || std::abs(d[u] - z0) > tau) continue;
-        sk += gk[u];
-        sc += gc[u];
-        skk += gk[u] * gk[u];
-        scc += gc[u] * gc[u];
-        skc += gk[u] * gc[u];
-      }
     }
   }
   if (4 * n < (2 * pr + 1) * (2 * pr + 1)) return true;
