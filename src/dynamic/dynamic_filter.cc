@@ -280,7 +280,7 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
   EgoMotion ego;
   for (const auto& stage : stages_) {
     const std::string name = stage->name();
-    if (stage->needs_motion_cues() && !res.motion_cues) {
+    if (!res.motion_cues && stage->needs_motion_cues() && stage->needs_motion_cues_for(ctx)) {
       const auto t0 = Clock::now();
       if (previous && calib_) {
         try {
