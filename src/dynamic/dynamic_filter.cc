@@ -273,8 +273,13 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
   Context ctx{sensor_, calib_, current, previous, cv::Mat::zeros(size, CV_8UC1), nullptr, nullptr,
               T_cw_predicted, &keyframes_};
   // This frame is the next one's previous frame: its corners are detected
-  // now, beside this frame's stages and SLAM's work on it.
-  if (calib_ && std::any_of(stages_.begin(), stages_.end(), [](const auto& s) { return s->needs_motion_cues(); }))
+  // now, beside this frame's stages and SLAM's work on it. Only while the
+  // frames need the cues (a stage may decline them, e.g. DM without
+  // candidate regions): else the detection would take a core from this
+  // frame's stages for nothing. A frame that needs them after one that did
+  // not detects its previous frame's corners itself (the same corners).
+  if (calib_ && cues_last_frame_ &&
+      std::any_of(stages_.begin(), stages_.end(), [](const auto& s) { return s->needs_motion_cues(); }))
     detect_corners_ahead(current.grey, o_.motion_cues, motion_cue_cache_);
   std::vector<TrackedPoint> tracked;
   EgoMotion ego;
@@ -324,6 +329,7 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
     }
     res.stage_ms[name] = ms_since(t0);
   }
+  cues_last_frame_ = res.motion_cues;
   res.mask = ctx.dynamic;
   res.fraction = cv::countNonZero(res.mask) / static_cast<double>(res.mask.total());
   res.all_dynamic = res.fraction >= o_.all_dynamic_fraction;
@@ -360,6 +366,7 @@ void DynamicFilter::reset() {
   last_.reset();
   keyframes_.clear();
   motion_cue_cache_ = MotionCueCache();
+  cues_last_frame_ = true;
   for (auto& s : stages_) s->reset();
 }
 

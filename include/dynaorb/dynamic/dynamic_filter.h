@@ -138,7 +138,8 @@ class DynamicFilter {
   std::shared_ptr<const FrameData> previous_;
   std::shared_ptr<FrameData> last_;             // of the last process(), tracked or not
   std::vector<KeyFrameData> keyframes_;
-  MotionCueCache motion_cue_cache_;  // the last frame's LK pyramid
+  MotionCueCache motion_cue_cache_;  // the last frame's LK pyramid, corners detected ahead
+  bool cues_last_frame_ = true;      // the last frame computed motion cues (or none yet)
 };
 
 }  // namespace dynaorb::dynamic
