@@ -345,6 +345,7 @@ struct System::Impl {
       r.dynamic_values["motion_cues.tracked_points"] = res.tracked_points;
       r.dynamic_values["motion_cues.ego_valid"] = res.ego_valid ? 1 : 0;
       r.dynamic_values["motion_cues.ego_inliers"] = res.ego_inliers;
+      for (const auto& [part, ms] : res.motion_cue_ms) r.dynamic_values["motion_cues." + part + "_ms"] = ms;
     }
     if (res.all_dynamic) ++counters.dynamic_all_frames;
     counters.dynamic_stage_failures += static_cast<long>(res.failed.size());

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
 
 namespace dynaorb::dynamic::ddl {
 
@@ -75,13 +76,51 @@ float closest_depth(const cv::Mat& depth, const cv::Point& p, float z_ref, int r
   return best;
 }
 
+namespace {
+
+// Both images are compared slightly blurred: resampling a texture finer
+// than the pixels (a floor at a grazing angle) aliases differently in
+// each view.
+void smooth(const cv::Mat& in, cv::Mat& out, const DdlOptions& o) {
+  in.convertTo(out, CV_32F);
+  if (o.confirm_blur_sigma_px > 0) cv::GaussianBlur(out, out, cv::Size(), o.confirm_blur_sigma_px);
+}
+
+}  // namespace
+
+void prepare_keyframe_maps(const FrameData& f, const DdlOptions& o, bool check, bool pyramid, KeyframeMaps& m) {
+  if (pyramid && !m.pyramid_made) {
+    m.pyramid_made = true;
+    if (!f.grey.empty() && f.grey.type() == CV_8UC1)
+      cv::buildOpticalFlowPyramid(f.grey, m.pyramid, kRefineWindow, kRefineLevels);
+  }
+  if (!check || m.check) return;
+  m.check = true;
+  if (f.depth.empty() || f.depth.type() != CV_32FC1) return;
+  // The keyframe's nearest and farthest depth around where P lands: a
+  // projection a pixel off a depth edge still finds P's surface (DynaSLAM's
+  // code searches a window for z' likewise).
+  const float far = std::numeric_limits<float>::max();
+  f.depth.copyTo(m.depth);
+  cv::patchNaNs(m.depth, 0);
+  const cv::Mat holes = m.depth <= 0;
+  cv::Mat min_src = m.depth.clone();
+  min_src.setTo(far, holes);
+  const int r = std::max(0, o.confirm_search_radius_px);
+  const cv::Mat window = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * r + 1, 2 * r + 1));
+  cv::erode(min_src, m.depth_min, window);
+  cv::dilate(m.depth, m.depth_max, window);
+  if (o.confirm_min_zncc > -1 && !f.grey.empty() && f.grey.size() == f.depth.size() && f.grey.type() == CV_8UC1)
+    smooth(f.grey, m.grey, o);
+}
+
 KeyframeEvidence::KeyframeEvidence(const cv::Mat& depth, const cv::Mat& grey,
                                    const std::vector<cv::Point2f>& rays, const std::vector<Reference>& refs,
                                    const view::Camera& camera, const DdlOptions& o)
-    : depth_(depth), o_(o), cache_(depth.size(), CV_8UC1, cv::Scalar(0)) {
+    : depth_(depth), rays_(rays), camera_(camera), o_(o), cache_(depth.size(), CV_8UC1, cv::Scalar(0)) {
   texture_ = o.confirm_min_zncc > -1 && grey.size() == depth.size() && grey.type() == CV_8UC1;
   if (texture_) {
-    smooth(grey, grey_);
+    smooth(grey, grey_, o_);
     // Current pixels next to a depth edge: their grey blends both sides.
     const float far = std::numeric_limits<float>::max();
     cv::Mat d = depth.clone(), d_hi, d_lo;
@@ -93,8 +132,22 @@ KeyframeEvidence::KeyframeEvidence(const cv::Mat& depth, const cv::Mat& grey,
     cv::erode(d_for_min, d_lo, k3);
     edge_ = (d_hi - d_lo) > o.depth_threshold_m;
   }
-  for (const Reference& r : refs)
-    if (r.dense) warp(*r.kf->frame, r.T_kc, rays, camera);
+  const cv::Size size = depth.size();
+  for (const Reference& r : refs) {
+    if (!r.dense || !r.maps || r.maps->depth.empty()) continue;
+    Warped wk;
+    wk.ref = &r;
+    wk.agree = cv::Mat(size, CV_8UC1, cv::Scalar(0));
+    wk.through = cv::Mat(size, CV_8UC1, cv::Scalar(0));
+    if (texture_ && !r.maps->grey.empty()) {
+      wk.grey = cv::Mat(size, CV_32FC1, cv::Scalar(0));
+      wk.usable = cv::Mat(size, CV_8UC1, cv::Scalar(0));
+    }
+    warped_.push_back(std::move(wk));
+  }
+  tiles_x_ = (size.width + kTile - 1) / kTile;
+  tiles_y_ = (size.height + kTile - 1) / kTile;
+  tile_done_.assign(static_cast<size_t>(tiles_x_) * tiles_y_, 0);
 }
 
 Seen KeyframeEvidence::operator()(int x, int y) {
@@ -117,85 +170,85 @@ bool KeyframeEvidence::moving_area(int x, int y) {
   return false;
 }
 
-// Both images are compared slightly blurred: resampling a texture finer
-// than the pixels (a floor at a grazing angle) aliases differently in
-// each view.
-void KeyframeEvidence::smooth(const cv::Mat& in, cv::Mat& out) const {
-  in.convertTo(out, CV_32F);
-  if (o_.confirm_blur_sigma_px > 0) cv::GaussianBlur(out, out, cv::Size(), o_.confirm_blur_sigma_px);
+void KeyframeEvidence::warp_tiles(const cv::Rect& r) {
+  const cv::Rect c = r & cv::Rect(0, 0, depth_.cols, depth_.rows);
+  if (c.empty()) return;
+  for (int ty = c.y / kTile; ty <= (c.y + c.height - 1) / kTile; ++ty)
+    for (int tx = c.x / kTile; tx <= (c.x + c.width - 1) / kTile; ++tx) {
+      unsigned char& done = tile_done_[static_cast<size_t>(ty) * tiles_x_ + tx];
+      if (done) continue;
+      done = 1;
+      const cv::Rect tile = cv::Rect(tx * kTile, ty * kTile, kTile, kTile) & cv::Rect(0, 0, depth_.cols, depth_.rows);
+      for (Warped& wk : warped_) warp_tile(wk, tile);
+    }
 }
 
-// The keyframe resampled through every current pixel's surface: where its
-// depth agrees, where it sees beyond, and its grey.
-void KeyframeEvidence::warp(const FrameData& f, const Eigen::Isometry3d& T_kc,
-                            const std::vector<cv::Point2f>& rays, const view::Camera& camera) {
-  const cv::Size size = depth_.size();
-  const int w = size.width, h = size.height;
-  cv::Mat map_x(size, CV_32FC1, cv::Scalar(-1)), map_y(size, CV_32FC1, cv::Scalar(-1));
-  cv::Mat z_k(size, CV_32FC1, cv::Scalar(0));
-  for (int y = 0; y < h; ++y) {
+// The keyframe resampled through the current pixels' surfaces in `tile`:
+// where its depth agrees, where it sees beyond, and its grey.
+void KeyframeEvidence::warp_tile(Warped& wk, const cv::Rect& tile) {
+  const Reference& ref = *wk.ref;
+  const KeyframeMaps& km = *ref.maps;
+  const int w = depth_.cols;
+  const cv::Size ksize = km.depth.size();
+  cv::Mat map_x(tile.size(), CV_32FC1, cv::Scalar(-1)), map_y(tile.size(), CV_32FC1, cv::Scalar(-1));
+  cv::Mat z_k(tile.size(), CV_32FC1, cv::Scalar(0));
+  for (int j = 0; j < tile.height; ++j) {
+    const int y = tile.y + j;
     const float* d = depth_.ptr<float>(y);
-    float* mx = map_x.ptr<float>(y);
-    float* my = map_y.ptr<float>(y);
-    float* zk = z_k.ptr<float>(y);
-    for (int x = 0; x < w; ++x) {
+    float* mx = map_x.ptr<float>(j);
+    float* my = map_y.ptr<float>(j);
+    float* zk = z_k.ptr<float>(j);
+    for (int i = 0; i < tile.width; ++i) {
+      const int x = tile.x + i;
       if (!view::valid_depth(d[x])) continue;
-      const cv::Point2f& ray = rays[static_cast<size_t>(y) * w + x];
-      const Eigen::Vector3d P_k = T_kc * Eigen::Vector3d(ray.x * d[x], ray.y * d[x], d[x]);
-      const cv::Point2f q = camera.project(P_k);
-      if (!view::inside(q, f.depth.size())) continue;
-      mx[x] = q.x;
-      my[x] = q.y;
-      zk[x] = static_cast<float>(P_k.z());
+      const cv::Point2f& ray = rays_[static_cast<size_t>(y) * w + x];
+      const Eigen::Vector3d P_k = ref.T_kc * Eigen::Vector3d(ray.x * d[x], ray.y * d[x], d[x]);
+      const cv::Point2f q = camera_.project(P_k);
+      if (!view::inside(q, ksize)) continue;
+      mx[i] = q.x;
+      my[i] = q.y;
+      zk[i] = static_cast<float>(P_k.z());
     }
   }
-  // The keyframe's nearest and farthest depth around where P lands: a
-  // projection a pixel off a depth edge still finds P's surface (DynaSLAM's
-  // code searches a window for z' likewise).
   const float far = std::numeric_limits<float>::max();
-  cv::Mat kd;
-  f.depth.copyTo(kd);
-  cv::patchNaNs(kd, 0);
-  const cv::Mat holes = kd <= 0;
-  cv::Mat kd_min_src = kd.clone();
-  kd_min_src.setTo(far, holes);
-  const int r = std::max(0, o_.confirm_search_radius_px);
-  const cv::Mat window = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * r + 1, 2 * r + 1));
-  cv::Mat kmin, kmax, d_near, d_min, d_max;
-  cv::erode(kd_min_src, kmin, window);
-  cv::dilate(kd, kmax, window);
-  cv::remap(kd, d_near, map_x, map_y, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
-  cv::remap(kmin, d_min, map_x, map_y, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
-  cv::remap(kmax, d_max, map_x, map_y, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
-  Warped wk;
-  wk.agree = cv::Mat(size, CV_8UC1, cv::Scalar(0));
-  wk.through = cv::Mat(size, CV_8UC1, cv::Scalar(0));
+  cv::Mat d_near, d_min, d_max;
+  cv::remap(km.depth, d_near, map_x, map_y, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
+  cv::remap(km.depth_min, d_min, map_x, map_y, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
+  cv::remap(km.depth_max, d_max, map_x, map_y, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
   const float tau = static_cast<float>(o_.depth_threshold_m);
-  for (int y = 0; y < h; ++y) {
-    const float* zk = z_k.ptr<float>(y);
-    const float* dn = d_near.ptr<float>(y);
-    const float* dl = d_min.ptr<float>(y);
-    const float* dh = d_max.ptr<float>(y);
-    unsigned char* a = wk.agree.ptr<unsigned char>(y);
-    unsigned char* t = wk.through.ptr<unsigned char>(y);
-    for (int x = 0; x < w; ++x) {
-      if (zk[x] <= 0.f || dh[x] <= 0.f) continue;
-      const auto near = [&](float v) { return v > 0.f && v < far && std::abs(v - zk[x]) <= tau; };
+  for (int j = 0; j < tile.height; ++j) {
+    const float* zk = z_k.ptr<float>(j);
+    const float* dn = d_near.ptr<float>(j);
+    const float* dl = d_min.ptr<float>(j);
+    const float* dh = d_max.ptr<float>(j);
+    unsigned char* a = wk.agree.ptr<unsigned char>(tile.y + j) + tile.x;
+    unsigned char* t = wk.through.ptr<unsigned char>(tile.y + j) + tile.x;
+    for (int i = 0; i < tile.width; ++i) {
+      if (zk[i] <= 0.f || dh[i] <= 0.f) continue;
+      const auto near = [&](float v) { return v > 0.f && v < far && std::abs(v - zk[i]) <= tau; };
       // 2: the keyframe's window lies on one surface, so its grey there is
       // that surface's and not blended with a neighbour across a depth edge.
-      if (near(dn[x]) || near(dl[x]) || near(dh[x])) a[x] = dh[x] - dl[x] <= tau ? 2 : 1;
-      else if (dl[x] > zk[x] + tau && dl[x] < far) t[x] = 1;
+      if (near(dn[i]) || near(dl[i]) || near(dh[i])) a[i] = dh[i] - dl[i] <= tau ? 2 : 1;
+      else if (dl[i] > zk[i] + tau && dl[i] < far) t[i] = 1;
     }
   }
-  if (texture_ && !f.grey.empty() && f.grey.size() == f.depth.size() && f.grey.type() == CV_8UC1) {
-    cv::Mat kf_grey;
-    smooth(f.grey, kf_grey);
-    cv::remap(kf_grey, wk.grey, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0));
+  if (!wk.grey.empty()) {
+    cv::Mat out = wk.grey(tile);  // remap writes into the tile: same size and type
+    cv::remap(km.grey, out, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0));
+    for (int j = 0; j < tile.height; ++j) {
+      const unsigned char* a = wk.agree.ptr<unsigned char>(tile.y + j) + tile.x;
+      const unsigned char* e = edge_.ptr<unsigned char>(tile.y + j) + tile.x;
+      unsigned char* ok = wk.usable.ptr<unsigned char>(tile.y + j) + tile.x;
+      for (int i = 0; i < tile.width; ++i) ok[i] = a[i] == 2 && !e[i];
+    }
   }
-  warped_.push_back(std::move(wk));
 }
 
-Seen KeyframeEvidence::classify(int x, int y) const {
+Seen KeyframeEvidence::classify(int x, int y) {
+  // The texture test reads the keyframes around (x, y).
+  const int pr = std::max(0, o_.confirm_patch_radius_px);
+  warp_tiles(cv::Rect(x - pr, y - pr, 2 * pr + 1, 2 * pr + 1));
+
   bool moving = false;
   for (const Warped& wk : warped_) {
     if (wk.through.at<unsigned char>(y, x)) {
@@ -222,18 +275,20 @@ bool KeyframeEvidence::texture_agrees(const Warped& wk, int x, int y) const {
   int n = 0;
   for (int v = std::max(0, y - pr); v <= std::min(depth_.rows - 1, y + pr); ++v) {
     const float* d = depth_.ptr<float>(v);
-    const unsigned char* a = wk.agree.ptr<unsigned char>(v);
+    const unsigned char* ok = wk.usable.ptr<unsigned char>(v);
     const float* gk = wk.grey.ptr<float>(v);
     const float* gc = grey_.ptr<float>(v);
-    const unsigned char* e = edge_.ptr<unsigned char>(v);
+    // Branch-free: a pixel left out adds exact zeros, so the sums are those
+    // of the pixels taken, in the same order.
     for (int u = std::max(0, x - pr); u <= std::min(depth_.cols - 1, x + pr); ++u) {
-      if (a[u] != 2 || e[u] || std::abs(d[u] - z0) > tau) continue;
-      sk += gk[u];
-      sc += gc[u];
-      skk += gk[u] * gk[u];
-      scc += gc[u] * gc[u];
-      skc += gk[u] * gc[u];
-      ++n;
+      const bool use = ok[u] && !(std::abs(d[u] - z0) > tau);
+      const float k = use ? gk[u] : 0.f, c = use ? gc[u] : 0.f;
+      sk += k;
+      sc += c;
+      skk += k * k;
+      scc += c * c;
+      skc += k * c;
+      n += use;
     }
   }
   if (4 * n < (2 * pr + 1) * (2 * pr + 1)) return true;

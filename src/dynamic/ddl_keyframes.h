@@ -5,6 +5,7 @@
 // static by them, and the pose refinement against their points. Internal to
 // src/dynamic.
 #include <Eigen/Geometry>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <vector>
@@ -13,6 +14,30 @@
 #include "view_geometry.h"
 
 namespace dynaorb::dynamic::ddl {
+
+// A keyframe's images as the keyframe check reads them. They depend on the
+// keyframe and the options only, so the stage prepares them once per
+// keyframe and keeps them while the keyframe is remembered.
+struct KeyframeMaps {
+  cv::Mat depth;      // CV_32FC1, NaN -> 0
+  cv::Mat depth_min;  // least valid depth in the (2r+1)^2 window, r = confirm_search_radius_px
+                      //   (FLT_MAX where the window holds none)
+  cv::Mat depth_max;  // greatest depth in the window (0 where none)
+  cv::Mat grey;       // CV_32FC1 smoothed grey; empty without a usable grey image or texture test
+  bool check = false;  // the four above are made
+  // The keyframe grey's LK pyramid (with derivatives) for refine_pose; empty
+  // when not made or without a usable grey image.
+  std::vector<cv::Mat> pyramid;
+  bool pyramid_made = false;
+};
+
+// refine_pose's Lucas-Kanade window and pyramid levels above the image.
+inline const cv::Size kRefineWindow(21, 21);
+constexpr int kRefineLevels = 3;
+
+// Makes what `m` lacks of the check images (check) and the LK pyramid
+// (pyramid) for frame `f`. Without a depth image the check images stay empty.
+void prepare_keyframe_maps(const FrameData& f, const DdlOptions& o, bool check, bool pyramid, KeyframeMaps& m);
 
 // One reference keyframe: its keypoints as world points, where they fall in
 // the current image, and what the keyframe check needs.
@@ -28,6 +53,7 @@ struct Reference {
   int in_view = 0;
   double overlap = 0;
   bool dense = false;  // depth image of the current size, usable by the keyframe check
+  std::shared_ptr<const KeyframeMaps> maps;  // set for dense keyframes before the keyframe check
 };
 
 // The keyframe's static keypoints with depth, back-projected (Algorithm 1
@@ -47,7 +73,9 @@ float closest_depth(const cv::Mat& depth, const cv::Point& p, float z_ref, int r
 // (its depth back-projected with the current pose): DdlOptions'
 // confirm_with_keyframes. Every keyframe is resampled into the current view
 // through P (its depth and grey where P would appear in it), so a static P
-// gives back its own depth and texture.
+// gives back its own depth and texture. The resampling is done tile by tile
+// where a pixel is first asked about (remap's output at a pixel depends on
+// that pixel's map values only, so a tile gives what the whole image would).
 enum class Seen : unsigned char {
   kUnknown = 0,  // not asked yet (the cache's empty value)
   kStatic,   // some keyframe saw P there: depth and texture agree
@@ -58,7 +86,8 @@ enum class Seen : unsigned char {
 class KeyframeEvidence {
  public:
   // depth, grey: the current frame's; rays: of every current pixel; refs:
-  // the reference keyframes with T_kc set. All must outlive the object.
+  // the reference keyframes with T_kc (and maps, for the dense ones) set.
+  // All must outlive the object.
   KeyframeEvidence(const cv::Mat& depth, const cv::Mat& grey, const std::vector<cv::Point2f>& rays,
                    const std::vector<Reference>& refs, const view::Camera& camera, const DdlOptions& o);
 
@@ -72,24 +101,31 @@ class KeyframeEvidence {
 
  private:
   struct Warped {
+    const Reference* ref = nullptr;
     cv::Mat agree;    // CV_8UC1: the keyframe's depth there matches P's within tau_d
                       //   (1; 2: and its window lies on one surface)
     cv::Mat through;  // CV_8UC1: the keyframe saw beyond P's place
     cv::Mat grey;     // CV_32FC1: the keyframe's (smoothed) grey where P lands, empty without texture
+    cv::Mat usable;   // CV_8UC1 (with grey): agree == 2 and no current depth edge, the texture test's pixels
   };
+  static constexpr int kTile = 32;  // px, square
 
-  void smooth(const cv::Mat& in, cv::Mat& out) const;
-  void warp(const FrameData& f, const Eigen::Isometry3d& T_kc, const std::vector<cv::Point2f>& rays,
-            const view::Camera& camera);
-  Seen classify(int x, int y) const;
+  // Resamples every keyframe on the tiles that hold the rectangle (clipped to the image).
+  void warp_tiles(const cv::Rect& r);
+  void warp_tile(Warped& wk, const cv::Rect& tile);
+  Seen classify(int x, int y);
   bool texture_agrees(const Warped& wk, int x, int y) const;
 
   const cv::Mat& depth_;
+  const std::vector<cv::Point2f>& rays_;
+  const view::Camera& camera_;
   const DdlOptions& o_;
   bool texture_ = false;
   cv::Mat grey_;
   cv::Mat edge_;
   std::vector<Warped> warped_;
+  int tiles_x_ = 0, tiles_y_ = 0;
+  std::vector<unsigned char> tile_done_;
   cv::Mat cache_;
 };
 

@@ -17,8 +17,8 @@ std::optional<Eigen::Isometry3d> refine_pose(const std::vector<Reference>& refs,
   std::vector<cv::Point3f> object;
   std::vector<cv::Point2f> image;
   const cv::Size size = grey.size();
-  const cv::Size window(21, 21);
-  constexpr int kLevels = 3;
+  const cv::Size window = kRefineWindow;
+  constexpr int kLevels = kRefineLevels;
   std::vector<cv::Mat> pyramid;  // the current image's, built once for all keyframes
   cv::buildOpticalFlowPyramid(grey, pyramid, window, kLevels);
   for (const Reference& r : refs) {
@@ -37,7 +37,9 @@ std::optional<Eigen::Isometry3d> refine_pose(const std::vector<Reference>& refs,
     if (from.empty()) continue;
     std::vector<unsigned char> ok;
     std::vector<float> err;
-    cv::calcOpticalFlowPyrLK(kf_grey, pyramid, from, to, ok, err, window, kLevels,
+    // The keyframe's pyramid is made once while it is a reference (same result as from its image).
+    const bool kf_pyramid = r.maps && !r.maps->pyramid.empty();
+    cv::calcOpticalFlowPyrLK(kf_pyramid ? cv::_InputArray(r.maps->pyramid) : cv::_InputArray(kf_grey), pyramid, from, to, ok, err, window, kLevels,
                              cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 30, 0.01),
                              cv::OPTFLOW_USE_INITIAL_FLOW);
     for (size_t j = 0; j < from.size(); ++j) {

@@ -10,6 +10,7 @@
 #include <optional>
 
 #include "ddl_keyframes.h"
+#include "dynaorb/core/stopwatch.h"
 #include "file_node_options.h"
 #include "view_geometry.h"
 
@@ -120,6 +121,25 @@ cv::Mat ddl_grow_regions(const cv::Mat& depth, const std::vector<cv::Point>& see
   return region;
 }
 
+void DdlStage::reset() { keyframe_maps_.clear(); }
+
+std::shared_ptr<const ddl::KeyframeMaps> DdlStage::keyframe_maps(const std::shared_ptr<const FrameData>& frame,
+                                                                 const std::vector<KeyFrameData>& keyframes,
+                                                                 bool check, bool pyramid) {
+  // Frames no longer among the keyframes are not asked for again.
+  keyframe_maps_.erase(std::remove_if(keyframe_maps_.begin(), keyframe_maps_.end(),
+                                      [&](const auto& e) {
+                                        return std::none_of(keyframes.begin(), keyframes.end(),
+                                                            [&](const KeyFrameData& k) { return k.frame == e.first; });
+                                      }),
+                       keyframe_maps_.end());
+  auto it = std::find_if(keyframe_maps_.begin(), keyframe_maps_.end(), [&](const auto& e) { return e.first == frame; });
+  if (it == keyframe_maps_.end())
+    it = keyframe_maps_.insert(keyframe_maps_.end(), {frame, std::make_shared<ddl::KeyframeMaps>()});
+  ddl::prepare_keyframe_maps(*frame, o_, check, pyramid, *it->second);
+  return it->second;
+}
+
 void DdlStage::process(Context& ctx, StageReport& report) {
   report.values["tau_alpha_deg"] = o_.parallax_threshold_deg;
   report.values["tau_d_m"] = o_.depth_threshold_m;
@@ -209,7 +229,9 @@ void DdlStage::process(Context& ctx, StageReport& report) {
   report.values["keyframes_used"] = static_cast<double>(refs.size());
 
   report.values["pose_refined"] = 0;
+  auto t_part = Clock::now();
   if (o_.refine_pose) {
+    for (Reference& r : refs) r.maps = keyframe_maps(r.kf->frame, *ctx.keyframes, false, true);
     std::optional<Eigen::Isometry3d> refined;
     try {
       refined = ddl::refine_pose(refs, cur.grey, calib, *T_cw, o_, report);
@@ -233,12 +255,21 @@ void DdlStage::process(Context& ctx, StageReport& report) {
     rays_calib_ = ctx.calib;
     rays_size_ = size;
   }
+  report.values["refine_ms"] = ms_since(t_part);
   // Built at the first dynamic point that needs it.
   std::optional<KeyframeEvidence> keyframe_evidence;
+  double evidence_ms = 0;
   const auto evidence = [&](int x, int y) {
-    if (!keyframe_evidence) keyframe_evidence.emplace(cur.depth, cur.grey, rays_, refs, camera, o_);
+    if (!keyframe_evidence) {
+      const auto t0 = Clock::now();
+      for (Reference& r : refs)
+        if (r.dense) r.maps = keyframe_maps(r.kf->frame, *ctx.keyframes, true, false);
+      keyframe_evidence.emplace(cur.depth, cur.grey, rays_, refs, camera, o_);
+      evidence_ms = ms_since(t0);
+    }
     return (*keyframe_evidence)(x, y);
   };
+  t_part = Clock::now();
 
   const double cos_tau_alpha = std::cos(o_.parallax_threshold_deg * M_PI / 180.0);
   int projected = 0, parallax_rejected = 0, no_depth = 0, vanished = 0, seen_static_rejected = 0,
@@ -296,6 +327,7 @@ void DdlStage::process(Context& ctx, StageReport& report) {
       }
     }
   }
+  report.values["check_ms"] = ms_since(t_part);
   report.values["projected"] = projected;
   report.values["parallax_rejected"] = parallax_rejected;
   report.values["no_depth"] = no_depth;
@@ -315,7 +347,11 @@ void DdlStage::process(Context& ctx, StageReport& report) {
       return !keyframe_evidence->moving_area(x, y);
     };
   }
+  t_part = Clock::now();
   cv::Mat region = ddl_grow_regions(cur.depth, seeds, o_, blocked);
+  report.values["grow_ms"] = ms_since(t_part);
+  // Part of check_ms or grow_ms, whichever built it first.
+  report.values["evidence_build_ms"] = evidence_ms;
   report.values["region_pixels"] = cv::countNonZero(region);
   if (o_.dilation_px > 0 && !seeds.empty()) {
     const int d = o_.dilation_px;

@@ -28,6 +28,11 @@ void DmOptions::read(const cv::FileNode& node) {
                      few_points_policy + "'");
 }
 
+bool DmStage::needs_motion_cues_for(const Context& ctx) const {
+  const cv::Mat& cand = ctx.current.candidates;
+  return !cand.empty() && cand.type() == CV_8UC1 && cv::countNonZero(cand) > 0;
+}
+
 void DmStage::reset() {
   memory_frame_ = -1;
   memory_dynamic_.release();

@@ -273,16 +273,28 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
   current.motion_checked = previous != nullptr;
   Context ctx{sensor_, calib_, current, previous, cv::Mat::zeros(size, CV_8UC1), nullptr, nullptr,
               T_cw_predicted, &keyframes_};
+  // This frame is the next one's previous frame: its corners are detected
+  // now, beside this frame's stages and SLAM's work on it. Only while the
+  // frames need the cues (a stage may decline them, e.g. DM without
+  // candidate regions): else the detection would take a core from this
+  // frame's stages for nothing. A frame that needs them after one that did
+  // not detects its previous frame's corners itself (the same corners).
+  if (calib_ && cues_last_frame_ &&
+      std::any_of(stages_.begin(), stages_.end(), [](const auto& s) { return s->needs_motion_cues(); }))
+    detect_corners_ahead(current.grey, o_.motion_cues, motion_cue_cache_);
   std::vector<TrackedPoint> tracked;
   EgoMotion ego;
   for (const auto& stage : stages_) {
     const std::string name = stage->name();
-    if (stage->needs_motion_cues() && !res.motion_cues) {
+    if (!res.motion_cues && stage->needs_motion_cues() && stage->needs_motion_cues_for(ctx)) {
       const auto t0 = Clock::now();
       if (previous && calib_) {
         try {
-          tracked = track_points(*previous, current, *calib_, sensor_, o_.motion_cues);
+          tracked = track_points(*previous, current, *calib_, sensor_, o_.motion_cues, &motion_cue_cache_);
+          res.motion_cue_ms = motion_cue_cache_.ms;
+          const auto t_ego = Clock::now();
           ego = estimate_ego_motion(tracked, *calib_, sensor_, o_.motion_cues);
+          res.motion_cue_ms["ego"] = ms_since(t_ego);
         } catch (const std::exception& e) {  // documented never to throw: a bug, the stages see no cues
           tracked.clear();
           ego = EgoMotion();
@@ -318,6 +330,7 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
     }
     res.stage_ms[name] = ms_since(t0);
   }
+  cues_last_frame_ = res.motion_cues;
   res.mask = ctx.dynamic;
   res.fraction = cv::countNonZero(res.mask) / static_cast<double>(res.mask.total());
   res.all_dynamic = res.fraction >= o_.all_dynamic_fraction;
@@ -353,6 +366,8 @@ void DynamicFilter::reset() {
   previous_.reset();
   last_.reset();
   keyframes_.clear();
+  motion_cue_cache_ = MotionCueCache();
+  cues_last_frame_ = true;
   for (auto& s : stages_) s->reset();
 }
 

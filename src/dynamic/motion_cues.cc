@@ -5,10 +5,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <future>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 
+#include "dynaorb/core/stopwatch.h"
 #include "file_node_options.h"
 
 namespace dynaorb::dynamic {
@@ -79,6 +81,20 @@ float depth_at(const cv::Mat& depth, const cv::Point2f& p, const MotionCueOption
   return z;
 }
 
+// cornerSubPix refines each corner on its own: chunks of corners on the
+// worker threads give what one call over all of them gives.
+void refine_corners(const cv::Mat& grey, std::vector<cv::Point2f>& corners, int half_window) {
+  const cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03);
+  const int n = static_cast<int>(corners.size());
+  constexpr int kChunk = 64;
+  cv::parallel_for_(cv::Range(0, (n + kChunk - 1) / kChunk), [&](const cv::Range& r) {
+    const int begin = r.start * kChunk, end = std::min(n, r.end * kChunk);
+    std::vector<cv::Point2f> part(corners.begin() + begin, corners.begin() + end);
+    cv::cornerSubPix(grey, part, cv::Size(half_window, half_window), cv::Size(-1, -1), crit);
+    std::copy(part.begin(), part.end(), corners.begin() + begin);
+  });
+}
+
 // cornerSubPix can pull neighbouring corners onto the same point; a point
 // counted twice would count twice in every vote downstream.
 std::vector<cv::Point2f> without_duplicates(const std::vector<cv::Point2f>& corners, double min_gap) {
@@ -104,15 +120,27 @@ struct Flow {
   std::vector<unsigned char> ok;  // tracked there and back within forward_backward_max
 };
 
-// LK from `a` into `b` and back; a point is kept only when the backward track
-// returns to where it started.
-Flow track_forward_backward(const cv::Mat& a, const cv::Mat& b, const std::vector<cv::Point2f>& from,
-                            const MotionCueOptions& o) {
+int lk_window(const MotionCueOptions& o) { return std::max(o.lk_window, 3); }
+int lk_levels(const MotionCueOptions& o) { return std::max(o.lk_levels, 0); }
+
+// The LK pyramid of an image with its derivatives: what calcOpticalFlowPyrLK
+// builds from the image on every call, built once for the calls that share it.
+std::vector<cv::Mat> lk_pyramid(const cv::Mat& image, const MotionCueOptions& o) {
+  std::vector<cv::Mat> pyramid;
+  const int w = lk_window(o);
+  cv::buildOpticalFlowPyramid(image, pyramid, cv::Size(w, w), lk_levels(o), true);
+  return pyramid;
+}
+
+// LK from `a` into `b` and back (pyramids of lk_pyramid); a point is kept
+// only when the backward track returns to where it started.
+Flow track_forward_backward(const std::vector<cv::Mat>& a, const std::vector<cv::Mat>& b,
+                            const std::vector<cv::Point2f>& from, const MotionCueOptions& o) {
   Flow f;
   f.ok.assign(from.size(), 0);
   if (from.empty()) return f;
-  const int win = std::max(o.lk_window, 3);
-  const int levels = std::max(o.lk_levels, 0);
+  const int win = lk_window(o);
+  const int levels = lk_levels(o);
   const cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 30, 0.01);
   std::vector<cv::Point2f> back;
   std::vector<unsigned char> st_f, st_b;
@@ -142,32 +170,65 @@ std::vector<cv::Point2f> undistorted(const std::vector<cv::Point2f>& px, const m
 
 }  // namespace
 
+std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOptions& o) {
+  std::vector<cv::Point2f> corners;
+  const int border = std::max(o.border, 0);
+  if (!is_grey(grey) || grey.cols <= 2 * border + 1 || grey.rows <= 2 * border + 1) return corners;
+  // Corners only where they could survive the edge rejection, so the corner
+  // budget is not spent on pairs that are dropped anyway.
+  cv::Mat detect_mask(grey.size(), CV_8UC1, cv::Scalar(0));
+  detect_mask(cv::Rect(border, border, grey.cols - 2 * border, grey.rows - 2 * border)).setTo(255);
+  cv::goodFeaturesToTrack(grey, corners, std::max(o.max_corners, 1), std::clamp(o.quality_level, 1e-6, 1.0),
+                          std::max(o.min_distance, 0.0), detect_mask, std::max(o.block_size, 1), o.use_harris,
+                          o.harris_k);
+  if (!corners.empty() && o.subpix_window > 0) {
+    refine_corners(grey, corners, o.subpix_window);
+    corners = without_duplicates(corners, std::max(1.0, o.min_distance / 2));
+  }
+  return corners;
+}
+
+void detect_corners_ahead(const cv::Mat& grey, const MotionCueOptions& o, MotionCueCache& cache) {
+  cache.corners_image = std::move(cache.next_corners_image);
+  cache.corners = std::move(cache.next_corners);
+  cache.next_corners_image = grey;
+  cache.next_corners = std::async(std::launch::async, [grey, o] { return detect_corners(grey, o); }).share();
+}
+
 std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& cur,
                                        const map::Calibration& calib, Sensor sensor,
-                                       const MotionCueOptions& o) {
+                                       const MotionCueOptions& o, MotionCueCache* cache) {
   std::vector<TrackedPoint> out;
+  if (cache) cache->ms.clear();
   if (!is_grey(prev.grey) || !is_grey(cur.grey) || prev.grey.size() != cur.grey.size()) return out;
   const cv::Size size = prev.grey.size();
   const int border = std::max(o.border, 0);
   if (size.width <= 2 * border + 1 || size.height <= 2 * border + 1) return out;
 
   try {
-    // Corners only where they could survive the edge rejection, so the corner
-    // budget is not spent on pairs that are dropped anyway.
-    cv::Mat detect_mask(size, CV_8UC1, cv::Scalar(0));
-    detect_mask(cv::Rect(border, border, size.width - 2 * border, size.height - 2 * border)).setTo(255);
-    std::vector<cv::Point2f> corners;
-    cv::goodFeaturesToTrack(prev.grey, corners, std::max(o.max_corners, 1),
-                            std::clamp(o.quality_level, 1e-6, 1.0), std::max(o.min_distance, 0.0),
-                            detect_mask, std::max(o.block_size, 1), o.use_harris, o.harris_k);
+    auto t0 = Clock::now();
+    const bool ahead = cache && cache->corners.valid() && cache->corners_image.data == prev.grey.data &&
+                       cache->corners_image.size() == size;
+    const std::vector<cv::Point2f> corners = ahead ? cache->corners.get() : detect_corners(prev.grey, o);
     if (corners.empty()) return out;
-    if (o.subpix_window > 0) {
-      cv::cornerSubPix(prev.grey, corners, cv::Size(o.subpix_window, o.subpix_window), cv::Size(-1, -1),
-                       cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03));
-      corners = without_duplicates(corners, std::max(1.0, o.min_distance / 2));
+    if (cache) cache->ms["corners"] = ms_since(t0);
+
+    t0 = Clock::now();
+    const bool cached = cache && !cache->image.empty() && cache->image.data == prev.grey.data &&
+                        cache->image.size() == size && cache->window == lk_window(o) &&
+                        cache->levels == lk_levels(o);
+    const std::vector<cv::Mat> prev_pyramid = cached ? cache->pyramid : lk_pyramid(prev.grey, o);
+    std::vector<cv::Mat> cur_pyramid = lk_pyramid(cur.grey, o);
+    if (cache) {
+      cache->image = cur.grey;
+      cache->pyramid = cur_pyramid;
+      cache->window = lk_window(o);
+      cache->levels = lk_levels(o);
+      cache->ms["pyramids"] = ms_since(t0);
     }
 
-    const Flow flow = track_forward_backward(prev.grey, cur.grey, corners, o);
+    t0 = Clock::now();
+    const Flow flow = track_forward_backward(prev_pyramid, cur_pyramid, corners, o);
     std::vector<cv::Point2f> kept_prev, kept_cur;
     for (size_t i = 0; i < corners.size(); ++i) {
       if (!flow.ok[i]) continue;
@@ -175,6 +236,7 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
       kept_prev.push_back(corners[i]);
       kept_cur.push_back(flow.to[i]);
     }
+    if (cache) cache->ms["flow"] = ms_since(t0);
     out.resize(kept_prev.size());
     for (size_t i = 0; i < out.size(); ++i) {
       out[i].prev = kept_prev[i];
@@ -187,7 +249,9 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
     } else if (sensor == Sensor::kStereo && is_grey(prev.right) && prev.right.size() == size &&
                calib.bf > 0) {
       // Rectified pair: the match lies on the same row, left of the corner.
-      const Flow stereo = track_forward_backward(prev.grey, prev.right, kept_prev, o);
+      t0 = Clock::now();
+      const Flow stereo = track_forward_backward(prev_pyramid, lk_pyramid(prev.right, o), kept_prev, o);
+      if (cache) cache->ms["stereo"] = ms_since(t0);
       for (size_t i = 0; i < out.size(); ++i) {
         if (!stereo.ok[i]) continue;
         const cv::Point2f& r = stereo.to[i];

@@ -39,6 +39,7 @@
 #include <memory>
 #include <opencv2/core.hpp>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "dynaorb/dynamic/stage.h"
@@ -185,6 +186,10 @@ struct DdlOptions {
   void read(const cv::FileNode& node);
 };
 
+namespace ddl {
+struct KeyframeMaps;  // ddl_keyframes.h (internal)
+}
+
 class DdlStage : public Stage {
  public:
   explicit DdlStage(DdlOptions options = {}) : o_(std::move(options)) {}
@@ -207,17 +212,34 @@ class DdlStage : public Stage {
   // behind), static, seen_static_rejected, vanished_rejected, tau_alpha_deg,
   // tau_d_m, region_pixels, semantic_pixels, combined_pixels, and on
   // degenerate input one of skipped_no_depth, skipped_bad_input,
-  // skipped_no_pose, skipped_no_keyframes.
+  // skipped_no_pose, skipped_no_keyframes. Wall time of its parts (ms):
+  // refine_ms, check_ms (the projection test), grow_ms (region growing),
+  // evidence_build_ms (the keyframe check's set-up, inside check_ms or
+  // grow_ms).
   void process(Context& ctx, StageReport& report) override;
+  // Forgets the prepared keyframe images.
+  void reset() override;
 
   const DdlOptions& options() const { return o_; }
 
  private:
+  // The prepared images of a keyframe's frame (from the cache; what it
+  // lacks of the check images / the LK pyramid is made now).
+  std::shared_ptr<const ddl::KeyframeMaps> keyframe_maps(const std::shared_ptr<const FrameData>& frame,
+                                                         const std::vector<KeyFrameData>& keyframes, bool check,
+                                                         bool pyramid);
+
   DdlOptions o_;
   // Rays of every current pixel, kept while the calibration and size stay.
   std::shared_ptr<const map::Calibration> rays_calib_;
   cv::Size rays_size_;
   std::vector<cv::Point2f> rays_;
+  // The keyframe check's per-keyframe images and refine_pose's LK pyramid
+  // (ddl::KeyframeMaps), prepared once per keyframe: a keyframe stays a
+  // reference for many frames. Holds the keyframes' frames, so an entry's
+  // address is never another frame's; entries of frames no longer among the
+  // keyframes are dropped.
+  std::vector<std::pair<std::shared_ptr<const FrameData>, std::shared_ptr<ddl::KeyframeMaps>>> keyframe_maps_;
 };
 
 // Region growing from `seeds` over `depth` (CV_32FC1 metres) with the

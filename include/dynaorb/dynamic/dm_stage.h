@@ -89,6 +89,8 @@ class DmStage : public Stage {
   std::string name() const override { return "dm"; }
   bool supports(Sensor) const override { return true; }
   bool needs_motion_cues() const override { return true; }
+  // Not without candidate regions (process skips before reading them).
+  bool needs_motion_cues_for(const Context& ctx) const override;
   void process(Context& ctx, StageReport& report) override;
   void reset() override;
 

@@ -89,6 +89,10 @@ struct FilterResult {
   std::vector<std::string> failed;
   std::vector<std::string> failure_messages;  // "<stage>: <what>"
   bool motion_cues = false;    // computed for this frame
+  // Wall time of the motion cues' parts (MotionCueCache::ms: corners,
+  // pyramids, flow, stereo; and ego, the ego-motion), within
+  // stage_ms["motion_cues"].
+  std::map<std::string, double> motion_cue_ms;
   int tracked_points = 0;      // of the motion cues
   bool ego_valid = false;
   int ego_inliers = 0;
@@ -134,6 +138,8 @@ class DynamicFilter {
   std::shared_ptr<const FrameData> previous_;
   std::shared_ptr<FrameData> last_;             // of the last process(), tracked or not
   std::vector<KeyFrameData> keyframes_;
+  MotionCueCache motion_cue_cache_;  // the last frame's LK pyramid, corners detected ahead
+  bool cues_last_frame_ = true;      // the last frame computed motion cues (or none yet)
 };
 
 }  // namespace dynaorb::dynamic

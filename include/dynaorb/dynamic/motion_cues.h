@@ -3,7 +3,10 @@
 // filter: corners tracked from the previous into the current image
 // (TrackedPoint) and the camera's ego-motion estimated from the points
 // outside the movable-class regions (EgoMotion). Both are in stage.h.
+#include <future>
+#include <map>
 #include <opencv2/core.hpp>
+#include <string>
 #include <vector>
 
 #include "dynaorb/core/sensor.h"
@@ -56,6 +59,40 @@ struct MotionCueOptions {
   void read(const cv::FileNode& node);
 };
 
+// What track_points keeps from one call to the next, for one set of
+// options: the current image's LK pyramid, which is the next call's previous
+// image's (same result as building it from the image again), and the
+// corners of the next previous image, detected ahead on another thread
+// (detect_corners_ahead). Also the time of its parts.
+struct MotionCueCache {
+  cv::Mat image;  // holds the buffer: no other image can have its address while cached
+  std::vector<cv::Mat> pyramid;
+  int window = 0, levels = -1;
+  // The corners of the image the next track_points call starts from
+  // (corners_image, held likewise), and those being detected for the call
+  // after it.
+  cv::Mat corners_image, next_corners_image;
+  std::shared_future<std::vector<cv::Point2f>> corners, next_corners;
+  // Wall time (ms) of the last call's parts: corners (detection and
+  // sub-pixel refinement, or the wait for them when detected ahead),
+  // pyramids, flow (LK forward-backward), stereo (LK into the right image;
+  // absent when not run).
+  std::map<std::string, double> ms;
+};
+
+// The corners track_points tracks from an image: goodFeaturesToTrack
+// inside the border, cornerSubPix, near-duplicates removed. May throw
+// cv::Exception on options OpenCV refuses.
+std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOptions& o);
+
+// Starts detect_corners(grey) on another thread, for the track_points call
+// whose previous image is `grey` (the next frame's): the detection depends on
+// that image alone, so it overlaps the rest of this frame's work. Same
+// corners as detecting them then. Call it once per frame before that
+// frame's track_points: the corners started at the last call move to the
+// slot track_points reads.
+void detect_corners_ahead(const cv::Mat& grey, const MotionCueOptions& o, MotionCueCache& cache);
+
 // Harris corners on prev.grey, followed by pyramidal LK into cur.grey with a
 // forward-backward check; pairs with either end within `border` of the image
 // edge are rejected. prev_depth comes from prev.depth (CV_32FC1 metres) when
@@ -64,10 +101,12 @@ struct MotionCueOptions {
 // else 0. Depth-image corners on a depth edge get 0 (depth_edge_* options).
 // in_candidate: inside prev.candidates at prev or cur.candidates at cur
 // (either may be empty). Pixels are raw (possibly distorted) image pixels.
-// Degenerate input (empty or mismatched images) gives no points.
+// Degenerate input (empty or mismatched images) gives no points. cache
+// (optional): reuses the previous call's current-image pyramid when prev.grey
+// is that image, and keeps cur.grey's for the next call.
 std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& cur,
                                        const map::Calibration& calib, Sensor sensor,
-                                       const MotionCueOptions& o);
+                                       const MotionCueOptions& o, MotionCueCache* cache = nullptr);
 
 // Ego-motion from the points with in_candidate == false only (DM-SLAM Sec.
 // 3.2.3): stereo / RGB-D: solvePnPRansac on the undistorted points with their

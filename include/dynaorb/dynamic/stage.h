@@ -118,6 +118,11 @@ class Stage {
   virtual bool supports(Sensor sensor) const = 0;
   // Whether the filter must compute TrackedPoint / EgoMotion for it.
   virtual bool needs_motion_cues() const { return false; }
+  // Whether it needs them on this frame, given what the earlier stages left
+  // in ctx (e.g. no candidate regions: nothing for it to judge). The filter
+  // computes the cues before the first stage that says so; a stage that
+  // says no must not read ctx.tracked / ctx.ego. Default: needs_motion_cues().
+  virtual bool needs_motion_cues_for(const Context& ctx) const { return needs_motion_cues(); }
   // Runs on one frame: ORs dynamic regions into ctx.dynamic (may read and
   // write ctx.current.candidates), fills `report`. Must not throw on degenerate input
   // (no previous frame, no labels, too few points): it then marks nothing and

@@ -148,6 +148,33 @@ TEST(DdlStage, CrossingBoxIsFoundStaticRoomIsNot) {
   EXPECT_GT(static_off_mover, 0.95 * o.report.static_points.size());
 }
 
+// The keyframes' prepared images (depth windows, grey, LK pyramids) are
+// kept between frames: a second frame, a reset, a fresh stage and a changed
+// keyframe list all give what a fresh stage gives.
+TEST(DdlStage, KeptKeyframeImagesGiveTheSameAnswer) {
+  Sequence s = crossing_box();
+  const auto mask_of = [&](DdlStage& stage) {
+    Context ctx = make_context(s);
+    StageReport rep;
+    stage.process(ctx, rep);
+    return std::make_pair(ctx.dynamic.clone(), rep);
+  };
+  DdlStage kept;
+  const auto first = mask_of(kept);
+  ASSERT_GT(cv::countNonZero(first.first), 0);
+  EXPECT_GT(first.second.values.at("evidence_build_ms"), 0);
+  for (const char* k : {"refine_ms", "check_ms", "grow_ms"}) EXPECT_TRUE(first.second.values.count(k)) << k;
+  const auto second = mask_of(kept);
+  EXPECT_EQ(cv::countNonZero(first.first != second.first), 0);
+  EXPECT_EQ(first.second.dynamic_points, second.second.dynamic_points);
+  kept.reset();
+  EXPECT_EQ(cv::countNonZero(first.first != mask_of(kept).first), 0);
+  // One keyframe gone: the kept stage answers as a fresh one does.
+  s.keyframes.erase(s.keyframes.begin() + 1);
+  DdlStage fresh;
+  EXPECT_EQ(cv::countNonZero(mask_of(fresh).first != mask_of(kept).first), 0);
+}
+
 TEST(DdlStage, DistortedImagesGiveTheSameAnswer) {
   Sequence s = crossing_box((cv::Mat_<double>(1, 5) << 0.12, -0.2, 0.001, -0.0015, 0.05));
   Context ctx = make_context(s);

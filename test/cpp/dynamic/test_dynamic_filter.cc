@@ -253,6 +253,28 @@ TEST(DynamicFilter, AFailingStageLeavesNoTrace) {
   EXPECT_EQ(r.reports.at("probe_throw").values.at("failed"), 1);
 }
 
+// DM-SLAM judges only points in candidate regions: on a frame without any
+// (no movable class in the labels) the filter computes no motion cues for
+// it; on one with a candidate region it does, and the parts are timed.
+TEST(DynamicFilter, MotionCuesOnlyForAFrameThatNeedsThem) {
+  const DynamicFilterOptions o = DynamicFilterOptions::parse(
+      "Dynamic.stages: [semantic, dm]\nDynamic.semantic: {classes: voc}\n", "dm.yaml");
+  DynamicFilter filter(o, Sensor::kRGBD, calibration(Sensor::kRGBD));
+  FrameData f0 = frame(0), f1 = frame(1, 2), f2 = frame(2, 4);
+  f0.labels = f1.labels = cv::Mat(240, 320, CV_8UC1, cv::Scalar(0));
+  f2.labels = f1.labels.clone();
+  f2.labels(cv::Rect(100, 80, 60, 80)).setTo(15);  // a person
+  filter.process(f0, std::nullopt);
+  const FilterResult r1 = filter.process(f1, std::nullopt);
+  EXPECT_FALSE(r1.motion_cues);
+  EXPECT_FALSE(r1.stage_ms.count("motion_cues"));
+  EXPECT_EQ(r1.reports.at("dm").values.count("skipped_no_candidates"), 1u);
+  const FilterResult r2 = filter.process(f2, std::nullopt);
+  EXPECT_TRUE(r2.motion_cues);
+  EXPECT_GT(r2.tracked_points, 100);
+  for (const char* k : {"corners", "pyramids", "flow", "ego"}) EXPECT_TRUE(r2.motion_cue_ms.count(k)) << k;
+}
+
 TEST(DynamicFilter, AllDynamicFrameIsKeptAndFlagged) {
   const DynamicFilterOptions o =
       DynamicFilterOptions::parse("Dynamic.stages: [semantic, dm]\nDynamic.semantic: {policy: drop}\n", "all.yaml");

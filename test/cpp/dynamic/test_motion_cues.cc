@@ -173,6 +173,43 @@ TEST(MotionCues, StereoDepthFromTheRightImage) {
   EXPECT_LT((ego.T_cur_prev.translation() - kMotion.translation()).norm(), 0.02);
 }
 
+bool same_points(const std::vector<TrackedPoint>& a, const std::vector<TrackedPoint>& b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i)
+    if (a[i].prev != b[i].prev || a[i].cur != b[i].cur || a[i].prev_depth != b[i].prev_depth ||
+        a[i].in_candidate != b[i].in_candidate)
+      return false;
+  return true;
+}
+
+// The cache only saves work: the previous image's pyramid kept from the last
+// call, its corners detected ahead on another thread; the points are the
+// same as without it, frame after frame, and a frame the cache did not see
+// (a stale entry) is tracked from scratch.
+TEST(MotionCues, CacheGivesTheSamePointsAsWithout) {
+  for (Sensor sensor : {Sensor::kRGBD, Sensor::kStereo}) {
+    auto calib = make_calibration(sensor);
+    Pair p = render_pair(*calib, sensor);
+    Pair q = render_pair(*calib, sensor);  // same views, other buffers
+    FrameData third = p.prev;  // back to the first view
+    third.grey = p.prev.grey.clone();
+    third.id = 2;
+    const MotionCueOptions o;
+    MotionCueCache cache;
+    detect_corners_ahead(p.prev.grey, o, cache);
+    detect_corners_ahead(p.cur.grey, o, cache);
+    const auto a1 = track_points(p.prev, p.cur, *calib, sensor, o, &cache);
+    EXPECT_TRUE(cache.ms.count("corners") && cache.ms.count("flow"));
+    detect_corners_ahead(third.grey, o, cache);
+    const auto a2 = track_points(p.cur, third, *calib, sensor, o, &cache);
+    const auto a3 = track_points(q.prev, q.cur, *calib, sensor, o, &cache);  // not the cached images
+    ASSERT_GT(a1.size(), 300u);
+    EXPECT_TRUE(same_points(a1, track_points(p.prev, p.cur, *calib, sensor, o)));
+    EXPECT_TRUE(same_points(a2, track_points(p.cur, third, *calib, sensor, o)));
+    EXPECT_TRUE(same_points(a3, a1));
+  }
+}
+
 TEST(MotionCues, MonocularGivesTheFundamentalMatrixOnly) {
   auto calib = make_calibration(Sensor::kMono);
   Pair p = render_pair(*calib, Sensor::kMono);
