@@ -144,6 +144,18 @@ def cmd_bench(args) -> int:
     return _bench_segmentation(args)
 
 
+def _model_folders(args) -> list[pathlib.Path]:
+    """Where the bench looks for segmentation models: --models, else ../shared/models/segmentation (when
+    the shared folder is found), then the cache of `dynaorb models fetch`."""
+    from dynaorb.segmentation import cache_dir
+    from dynaorb.synth.textures import default_texture_dir
+
+    if args.models:
+        return [pathlib.Path(args.models)]
+    data = default_texture_dir()
+    return ([data.parent / "models" / "segmentation"] if data is not None else []) + [cache_dir()]
+
+
 def _bench_network(args) -> str | None:
     """The segmentation model the quick/full suites run on sequences without label images: --model, else
     the dm05 PASCAL model of --models (default ../shared/models/segmentation, else the cache); None with
@@ -152,13 +164,7 @@ def _bench_network(args) -> str | None:
         return None
     if args.model:
         return args.model
-    from dynaorb.segmentation import cache_dir
-    from dynaorb.synth.textures import default_texture_dir
-
-    data = default_texture_dir()
-    folders = [pathlib.Path(args.models)] if args.models else (
-        ([data.parent / "models" / "segmentation"] if data is not None else []) + [cache_dir()])
-    for folder in folders:
+    for folder in _model_folders(args):
         for name in ("deeplabv3_mnv2_dm05_pascal_quant.onnx", "deeplabv3_mnv2_dm05_pascal_quant.tflite"):
             if (folder / name).is_file():
                 return str(folder / name)
@@ -181,9 +187,7 @@ def _bench_segmentation(args) -> int:
     data = default_texture_dir()
     if data is None:
         raise FileNotFoundError("the shared data folder was not found (set DYNAORB_SHARED)")
-    models = args.models or (data.parent / "models" / "segmentation")
-    if not pathlib.Path(models).is_dir():
-        models = cache_dir()
+    models = next((f for f in _model_folders(args) if f.is_dir()), cache_dir())
     segmentation.run(args.out, str(models), str(data), runs=args.runs or 10,
                      sequence=tuple(args.sequence) if args.sequence else None, model=args.model)
     print((pathlib.Path(args.out) / "segmentation.md").read_text())
