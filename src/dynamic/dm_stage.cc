@@ -7,6 +7,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "dynaorb/core/stopwatch.h"
 #include "dynaorb/dynamic/candidate_regions.h"
 #include "dynaorb/io/errors.h"
 #include "file_node_options.h"
@@ -190,7 +191,9 @@ void DmStage::process(Context& ctx, StageReport& report) {
   }
 
   // Per-region decision.
-  const CandidateRegions regions = candidate_regions(cand, ctx.current.labels, o.split_by_label);
+  const auto t_regions = Clock::now();
+  const CandidateRegions& regions = ctx.regions.get(cand, ctx.current.labels, o.split_by_label);
+  val["regions_ms"] = ms_since(t_regions);
   // The vote is the segmented object's (DM-SLAM: the points that "fall in the
   // potentially moving area"): points in the margin the candidates add around
   // the labels are background more often than not and would dilute it.
@@ -223,12 +226,26 @@ void DmStage::process(Context& ctx, StageReport& report) {
   }
 
   if (ctx.dynamic.empty()) ctx.dynamic = cv::Mat(cand.size(), CV_8UC1, cv::Scalar(0));
-  cv::Mat decided_dynamic(cand.size(), CV_8UC1, cv::Scalar(0));
-  cv::Mat decided_static(cand.size(), CV_8UC1, cv::Scalar(0));
+  // Under the "previous" policy a region with too few points takes the
+  // decision that covered more of it in the frame before: its overlaps with
+  // both, counted in one pass over the region image.
+  std::vector<int> overlap_dyn(regions.count + 1, 0), overlap_static(regions.count + 1, 0);
+  if (o.few_points_policy == "previous" && !prev_dynamic.empty()) {
+    for (int y = 0; y < regions.ids.rows; ++y) {
+      const int* id = regions.ids.ptr<int>(y);
+      const unsigned char* pd = prev_dynamic.ptr<unsigned char>(y);
+      const unsigned char* ps = prev_static.ptr<unsigned char>(y);
+      for (int x = 0; x < regions.ids.cols; ++x)
+        if (id[x] > 0) {
+          overlap_dyn[id[x]] += pd[x] != 0;
+          overlap_static[id[x]] += ps[x] != 0;
+        }
+    }
+  }
   const double fraction = mono ? o.region_dynamic_fraction_mono : o.region_dynamic_fraction;
+  std::vector<unsigned char> region_dynamic(regions.count + 1, 0);
   int marked = 0, few = 0, few_kept_dynamic = 0;
   for (int r = 1; r <= regions.count; ++r) {
-    const cv::Mat region = regions.ids == r;
     bool dyn = false;
     if (n_judged[r] >= std::max(o.min_region_points, 1)) {
       dyn = static_cast<double>(n_dynamic[r]) >= fraction * n_judged[r];
@@ -237,18 +254,21 @@ void DmStage::process(Context& ctx, StageReport& report) {
       if (o.few_points_policy == "dynamic") {
         dyn = true;
       } else if (o.few_points_policy == "previous" && !prev_dynamic.empty()) {
-        const int overlap_dyn = cv::countNonZero(region & prev_dynamic);
-        const int overlap_static = cv::countNonZero(region & prev_static);
-        dyn = overlap_dyn > 0 && overlap_dyn >= overlap_static;
+        dyn = overlap_dyn[r] > 0 && overlap_dyn[r] >= overlap_static[r];
       }
       few_kept_dynamic += dyn;
     }
-    if (dyn) {
-      ++marked;
-      decided_dynamic.setTo(255, region);
-    } else {
-      decided_static.setTo(255, region);
-    }
+    region_dynamic[r] = dyn;
+    marked += dyn;
+  }
+  cv::Mat decided_dynamic(cand.size(), CV_8UC1, cv::Scalar(0));
+  cv::Mat decided_static(cand.size(), CV_8UC1, cv::Scalar(0));
+  for (int y = 0; y < regions.ids.rows; ++y) {
+    const int* id = regions.ids.ptr<int>(y);
+    unsigned char* dd = decided_dynamic.ptr<unsigned char>(y);
+    unsigned char* ds = decided_static.ptr<unsigned char>(y);
+    for (int x = 0; x < regions.ids.cols; ++x)
+      if (id[x] > 0) (region_dynamic[id[x]] ? dd : ds)[x] = 255;
   }
   cv::bitwise_or(ctx.dynamic, decided_dynamic, ctx.dynamic);
   memory_frame_ = ctx.current.id;

@@ -281,7 +281,7 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
   // not detects its previous frame's corners itself (the same corners).
   if (calib_ && cues_last_frame_ &&
       std::any_of(stages_.begin(), stages_.end(), [](const auto& s) { return s->needs_motion_cues(); }))
-    detect_corners_ahead(current.grey, o_.motion_cues, motion_cue_cache_);
+    detect_corners_ahead(current, *calib_, sensor_, o_.motion_cues, motion_cue_cache_);
   std::vector<TrackedPoint> tracked;
   EgoMotion ego;
   for (const auto& stage : stages_) {

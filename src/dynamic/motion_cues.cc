@@ -188,11 +188,48 @@ std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOpti
   return corners;
 }
 
-void detect_corners_ahead(const cv::Mat& grey, const MotionCueOptions& o, MotionCueCache& cache) {
+std::vector<float> stereo_depths(const std::vector<cv::Mat>& left_pyramid, const std::vector<cv::Mat>& right_pyramid,
+                                 const std::vector<cv::Point2f>& points, double bf, const MotionCueOptions& o) {
+  std::vector<float> depth(points.size(), 0.f);
+  // Rectified pair: the match lies on the same row, left of the corner.
+  const Flow stereo = track_forward_backward(left_pyramid, right_pyramid, points, o);
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (!stereo.ok[i]) continue;
+    const cv::Point2f& r = stereo.to[i];
+    const double disparity = points[i].x - r.x;
+    if (std::abs(r.y - points[i].y) > 1.0 || !(disparity > 0)) continue;
+    depth[i] = static_cast<float>(bf / disparity);
+  }
+  return depth;
+}
+
+namespace {
+
+// What track_points does for stereo depth: a rectified right image and no
+// depth image.
+bool wants_stereo_depth(const FrameData& f, const map::Calibration& calib, Sensor sensor) {
+  const bool depth_image = !f.depth.empty() && f.depth.type() == CV_32FC1 && f.depth.size() == f.grey.size();
+  return !depth_image && sensor == Sensor::kStereo && is_grey(f.right) && f.right.size() == f.grey.size() &&
+         calib.bf > 0;
+}
+
+}  // namespace
+
+void detect_corners_ahead(const FrameData& frame, const map::Calibration& calib, Sensor sensor,
+                          const MotionCueOptions& o, MotionCueCache& cache) {
   cache.corners_image = std::move(cache.next_corners_image);
   cache.corners = std::move(cache.next_corners);
+  const cv::Mat grey = frame.grey;
+  const cv::Mat right = wants_stereo_depth(frame, calib, sensor) ? frame.right : cv::Mat();
+  const double bf = calib.bf;
   cache.next_corners_image = grey;
-  cache.next_corners = std::async(std::launch::async, [grey, o] { return detect_corners(grey, o); }).share();
+  cache.next_corners = std::async(std::launch::async, [grey, right, bf, o] {
+                         AheadCorners a;
+                         a.corners = detect_corners(grey, o);
+                         if (!right.empty() && !a.corners.empty())
+                           a.right_depth = stereo_depths(lk_pyramid(grey, o), lk_pyramid(right, o), a.corners, bf, o);
+                         return a;
+                       }).share();
 }
 
 std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& cur,
@@ -209,7 +246,10 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
     auto t0 = Clock::now();
     const bool ahead = cache && cache->corners.valid() && cache->corners_image.data == prev.grey.data &&
                        cache->corners_image.size() == size;
-    const std::vector<cv::Point2f> corners = ahead ? cache->corners.get() : detect_corners(prev.grey, o);
+    AheadCorners detected;
+    if (ahead) detected = cache->corners.get();
+    else detected.corners = detect_corners(prev.grey, o);
+    const std::vector<cv::Point2f>& corners = detected.corners;
     if (corners.empty()) return out;
     if (cache) cache->ms["corners"] = ms_since(t0);
 
@@ -230,11 +270,13 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
     t0 = Clock::now();
     const Flow flow = track_forward_backward(prev_pyramid, cur_pyramid, corners, o);
     std::vector<cv::Point2f> kept_prev, kept_cur;
+    std::vector<size_t> kept_corner;
     for (size_t i = 0; i < corners.size(); ++i) {
       if (!flow.ok[i]) continue;
       if (!away_from_edge(corners[i], size, border) || !away_from_edge(flow.to[i], size, border)) continue;
       kept_prev.push_back(corners[i]);
       kept_cur.push_back(flow.to[i]);
+      kept_corner.push_back(i);
     }
     if (cache) cache->ms["flow"] = ms_since(t0);
     out.resize(kept_prev.size());
@@ -246,18 +288,15 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
 
     if (!prev.depth.empty() && prev.depth.type() == CV_32FC1 && prev.depth.size() == size) {
       for (auto& p : out) p.prev_depth = depth_at(prev.depth, p.prev, o);
-    } else if (sensor == Sensor::kStereo && is_grey(prev.right) && prev.right.size() == size &&
-               calib.bf > 0) {
-      // Rectified pair: the match lies on the same row, left of the corner.
-      t0 = Clock::now();
-      const Flow stereo = track_forward_backward(prev_pyramid, lk_pyramid(prev.right, o), kept_prev, o);
-      if (cache) cache->ms["stereo"] = ms_since(t0);
-      for (size_t i = 0; i < out.size(); ++i) {
-        if (!stereo.ok[i]) continue;
-        const cv::Point2f& r = stereo.to[i];
-        const double disparity = kept_prev[i].x - r.x;
-        if (std::abs(r.y - kept_prev[i].y) > 1.0 || !(disparity > 0)) continue;
-        out[i].prev_depth = static_cast<float>(calib.bf / disparity);
+    } else if (wants_stereo_depth(prev, calib, sensor)) {
+      if (detected.right_depth.size() == corners.size()) {
+        // Found with the corners, ahead.
+        for (size_t i = 0; i < out.size(); ++i) out[i].prev_depth = detected.right_depth[kept_corner[i]];
+      } else {
+        t0 = Clock::now();
+        const std::vector<float> depth = stereo_depths(prev_pyramid, lk_pyramid(prev.right, o), kept_prev, calib.bf, o);
+        if (cache) cache->ms["stereo"] = ms_since(t0);
+        for (size_t i = 0; i < out.size(); ++i) out[i].prev_depth = depth[i];
       }
     }
   } catch (const cv::Exception&) {

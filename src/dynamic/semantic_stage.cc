@@ -129,11 +129,8 @@ void SemanticStage::process(Context& ctx, StageReport& report) {
   cur.candidates = candidates(cur.labels);
   const double n = cv::countNonZero(cur.candidates);
   report.values["candidate_fraction"] = n / static_cast<double>(cur.candidates.total());
-  int regions = 0;
-  if (n > 0) {
-    cv::Mat components;
-    regions = cv::connectedComponents(cur.candidates, components, 8, CV_32S) - 1;  // minus the background
-  }
+  // The blobs are cut once for this and the later stages' regions.
+  const int regions = n > 0 ? ctx.regions.get(cur.candidates, cv::Mat(), false).count : 0;
   report.values["candidate_regions"] = regions;
   if (o_.policy == SemanticOptions::Policy::kDrop && n > 0) {
     if (ctx.dynamic.empty()) ctx.dynamic = cv::Mat::zeros(cur.grey.size(), CV_8UC1);

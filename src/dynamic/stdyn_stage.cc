@@ -10,6 +10,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "dynaorb/core/stopwatch.h"
 #include "dynaorb/dynamic/candidate_regions.h"
 #include "dynaorb/io/errors.h"
 #include "file_node_options.h"
@@ -208,6 +209,7 @@ void StdynStage::process(Context& ctx, StageReport& report) {
   }
   cv::Matx33d F;
   int f_inliers = 0;
+  const auto t_f = Clock::now();
   try {
     std::vector<unsigned char> mask;
     const cv::Mat Fm = cv::findFundamentalMat(f_prev, f_cur, cv::FM_RANSAC, o_.f_ransac_threshold_px,
@@ -241,6 +243,7 @@ void StdynStage::process(Context& ctx, StageReport& report) {
     return;
   }
   val["f_inliers"] = f_inliers;
+  val["f_ms"] = ms_since(t_f);
 
   // STDyn Sec. III-B.1 (Fig. 3): a point farther than the threshold from its
   // epipolar line is an outlier, i.e. dynamic.
@@ -278,7 +281,9 @@ void StdynStage::process(Context& ctx, StageReport& report) {
   if (labels_ok) cv::LUT(labels, lut, movable_labels);
   // No candidates from an earlier stage: the movable classes' own regions.
   const cv::Mat regions_of = cand_ok ? cand : cv::Mat(movable_labels != 0);
-  const CandidateRegions objects = candidate_regions(regions_of, movable_labels, true);
+  const auto t_regions = Clock::now();
+  const CandidateRegions& objects = ctx.regions.get(regions_of, movable_labels, true);
+  val["regions_ms"] = ms_since(t_regions);
   const cv::Mat& ids = objects.ids;
   const int n_objects = objects.count;
   val["objects"] = n_objects;

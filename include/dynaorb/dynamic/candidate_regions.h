@@ -4,6 +4,7 @@
 // object is determined to be moving"). Without instance ids from the network
 // the best we have is: connected components of the mask, and where two
 // classes touch (a person in front of a car) they are different objects.
+#include <list>
 #include <opencv2/core.hpp>
 #include <vector>
 
@@ -17,11 +18,47 @@ struct CandidateRegions {
 };
 
 // candidates: CV_8UC1 (non-zero = candidate). labels: CV_8UC1 class ids of the
-// same size, or empty. With split_by_label, every candidate pixel belongs to
-// the class of its nearest labelled pixel (the candidate mask is the labels
-// widened by a margin, so margin pixels carry no label of their own), and
-// regions are the 8-connected components per class; otherwise per mask.
+// same size, or empty. Regions are the 8-connected components of the mask.
+// With split_by_label, a component holding two classes or more (instances
+// of different classes touching) is split: each of its pixels belongs to
+// the class of the nearest pixel of those classes inside the component's
+// bounding box (the candidate mask is the labels widened by a margin, so
+// margin pixels carry no label of their own), and its regions are the
+// 8-connected components per class. label[] is the component's class, or
+// 0 when it holds no labelled pixel.
 // Bad input (empty, wrong type) gives no regions.
 CandidateRegions candidate_regions(const cv::Mat& candidates, const cv::Mat& labels, bool split_by_label);
+
+// The first step of candidate_regions: the mask's 8-connected components
+// (connectedComponentsWithStats: comp, stats, count without the background),
+// which do not depend on the labels. Bad input gives count 0, comp empty.
+struct CandidateBlobs {
+  cv::Mat comp, stats;
+  int count = 0;
+};
+CandidateBlobs candidate_blobs(const cv::Mat& candidates);
+CandidateRegions candidate_regions(const CandidateBlobs& blobs, const cv::Mat& labels, bool split_by_label);
+
+// candidate_regions for one frame, cut once for all the stages that ask with
+// the same inputs (the same pixels, not only the same buffers): DM-SLAM's
+// and STDyn-SLAM's stages decide on the same objects. The result is shared
+// (do not write into its ids) and lives as long as the memo.
+class RegionsMemo {
+ public:
+  const CandidateRegions& get(const cv::Mat& candidates, const cv::Mat& labels, bool split_by_label);
+
+ private:
+  struct Result {
+    cv::Mat labels;  // a copy: the stages' inputs may change after the call
+    bool split = false;
+    CandidateRegions regions;
+  };
+  struct Entry {
+    cv::Mat candidates;  // a copy, likewise
+    CandidateBlobs blobs;  // cut once, whatever labels split them
+    std::list<Result> results;  // lists: the references given out stay valid
+  };
+  std::list<Entry> entries_;
+};
 
 }  // namespace dynaorb::dynamic

@@ -59,6 +59,14 @@ struct MotionCueOptions {
   void read(const cv::FileNode& node);
 };
 
+// The corners of an image detected ahead, on another thread, and for a
+// rectified stereo pair the depth of each from LK into the right image (0:
+// none; empty when not computed there).
+struct AheadCorners {
+  std::vector<cv::Point2f> corners;
+  std::vector<float> right_depth;
+};
+
 // What track_points keeps from one call to the next, for one set of
 // options: the current image's LK pyramid, which is the next call's previous
 // image's (same result as building it from the image again), and the
@@ -72,11 +80,12 @@ struct MotionCueCache {
   // (corners_image, held likewise), and those being detected for the call
   // after it.
   cv::Mat corners_image, next_corners_image;
-  std::shared_future<std::vector<cv::Point2f>> corners, next_corners;
+  std::shared_future<AheadCorners> corners, next_corners;
   // Wall time (ms) of the last call's parts: corners (detection and
   // sub-pixel refinement, or the wait for them when detected ahead),
   // pyramids, flow (LK forward-backward), stereo (LK into the right image;
-  // absent when not run).
+  // absent when not run in the call: not needed, or done ahead with the
+  // corners).
   std::map<std::string, double> ms;
 };
 
@@ -85,13 +94,24 @@ struct MotionCueCache {
 // cv::Exception on options OpenCV refuses.
 std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOptions& o);
 
-// Starts detect_corners(grey) on another thread, for the track_points call
-// whose previous image is `grey` (the next frame's): the detection depends on
-// that image alone, so it overlaps the rest of this frame's work. Same
-// corners as detecting them then. Call it once per frame before that
-// frame's track_points: the corners started at the last call move to the
-// slot track_points reads.
-void detect_corners_ahead(const cv::Mat& grey, const MotionCueOptions& o, MotionCueCache& cache);
+// Depth (calib.bf / disparity) of each of `points` of a rectified left
+// image by forward-backward LK into the right one (pyramids of the same
+// window and levels); 0 where the match fails, leaves the row by more
+// than 1 px or has no positive disparity.
+std::vector<float> stereo_depths(const std::vector<cv::Mat>& left_pyramid, const std::vector<cv::Mat>& right_pyramid,
+                                 const std::vector<cv::Point2f>& points, double bf, const MotionCueOptions& o);
+
+// Starts detect_corners(frame.grey) on another thread, for the track_points
+// call whose previous frame is `frame` (the next frame's): the detection
+// depends on that frame alone, so it overlaps the rest of this frame's
+// work. For stereo without a depth image (frame.right set, calib.bf > 0) it
+// also finds the corners' depth in frame.right, which track_points would
+// otherwise compute on the calling thread. Same corners and depths as
+// computing them then (LK tracks each point on its own). Call it once per
+// frame before that frame's track_points: the corners started at the last
+// call move to the slot track_points reads.
+void detect_corners_ahead(const FrameData& frame, const map::Calibration& calib, Sensor sensor,
+                          const MotionCueOptions& o, MotionCueCache& cache);
 
 // Harris corners on prev.grey, followed by pyramidal LK into cur.grey with a
 // forward-backward check; pairs with either end within `border` of the image

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "dynaorb/core/sensor.h"
+#include "dynaorb/dynamic/candidate_regions.h"
 #include "dynaorb/map/calibration.h"
 
 namespace dynaorb::dynamic {
@@ -99,6 +100,9 @@ struct Context {
   // (empty before two tracked frames).
   std::optional<Eigen::Isometry3d> T_cw_predicted;
   const std::vector<KeyFrameData>* keyframes = nullptr;  // newest last
+  // The candidate regions of this frame (candidate_regions.h), cut once for
+  // the stages that ask with the same inputs.
+  RegionsMemo regions;
 };
 
 // What one stage reports for one frame (stats.json, tests).

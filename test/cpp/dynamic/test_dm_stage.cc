@@ -343,6 +343,32 @@ TEST(CandidateRegions, TouchingClassesAreSeparateObjects) {
   EXPECT_EQ(candidate_regions(cv::Mat(10, 10, CV_32FC1, cv::Scalar(1)), cv::Mat(), true).count, 0);
 }
 
+// The memo gives what candidate_regions gives, once per distinct input:
+// the same pixels in another buffer are the same input, other pixels are not.
+TEST(CandidateRegions, MemoCutsEqualInputsOnce) {
+  cv::Mat labels(100, 200, CV_8UC1, cv::Scalar(0));
+  labels(cv::Rect(20, 20, 60, 60)).setTo(kPerson);
+  labels(cv::Rect(80, 30, 60, 50)).setTo(kCar);
+  cv::Mat cand;
+  cv::dilate(labels > 0, cand, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(5, 5)));
+  RegionsMemo memo;
+  const CandidateRegions& a = memo.get(cand, labels, true);
+  const CandidateRegions direct = candidate_regions(cand, labels, true);
+  ASSERT_EQ(a.count, direct.count);
+  EXPECT_EQ(cv::countNonZero(a.ids != direct.ids), 0);
+  const CandidateRegions& b = memo.get(cand.clone(), labels.clone(), true);
+  EXPECT_EQ(&a, &b);
+  const CandidateRegions& merged = memo.get(cand, labels, false);
+  EXPECT_NE(&merged, &a);
+  EXPECT_EQ(merged.count, 1);
+  cv::Mat other = labels.clone();
+  other(cv::Rect(80, 30, 60, 50)).setTo(kPerson);  // one class now: one object
+  const CandidateRegions& c = memo.get(cand, other, true);
+  EXPECT_NE(&c, &a);
+  EXPECT_EQ(c.count, 1);
+  EXPECT_EQ(a.count, 2);  // the first answer is still there
+}
+
 TEST(DmStage, OptionsReadFromYaml) {
   cv::FileStorage fs(
       "%YAML:1.0\ndm:\n  epipolar_threshold_px: 2\n  few_points_policy: static\n  split_by_label: 0\n"

@@ -186,7 +186,7 @@ TEST(DynamicFilterOptions, ShippedPresetsLoad) {
     }
   }
   const DynamicFilterOptions full = DynamicFilterOptions::load((dir / "full.yaml").string());
-  EXPECT_EQ(full.stages_for(Sensor::kRGBD), (std::vector<std::string>{"semantic", "dm", "ddl"}));
+  EXPECT_EQ(full.stages_for(Sensor::kRGBD), (std::vector<std::string>{"semantic", "dm"}));
   EXPECT_FALSE(DynamicFilterOptions::load((dir / "off.yaml").string()).enabled(Sensor::kRGBD));
   EXPECT_EQ(DynamicFilterOptions::load((dir / "ddl.yaml").string()).keyframes, 15);
 }

@@ -183,7 +183,8 @@ bool same_points(const std::vector<TrackedPoint>& a, const std::vector<TrackedPo
 }
 
 // The cache only saves work: the previous image's pyramid kept from the last
-// call, its corners detected ahead on another thread; the points are the
+// call, its corners (and for stereo their depths) found ahead on another
+// thread; the points are the
 // same as without it, frame after frame, and a frame the cache did not see
 // (a stale entry) is tracked from scratch.
 TEST(MotionCues, CacheGivesTheSamePointsAsWithout) {
@@ -196,11 +197,13 @@ TEST(MotionCues, CacheGivesTheSamePointsAsWithout) {
     third.id = 2;
     const MotionCueOptions o;
     MotionCueCache cache;
-    detect_corners_ahead(p.prev.grey, o, cache);
-    detect_corners_ahead(p.cur.grey, o, cache);
+    detect_corners_ahead(p.prev, *calib, sensor, o, cache);
+    detect_corners_ahead(p.cur, *calib, sensor, o, cache);
     const auto a1 = track_points(p.prev, p.cur, *calib, sensor, o, &cache);
     EXPECT_TRUE(cache.ms.count("corners") && cache.ms.count("flow"));
-    detect_corners_ahead(third.grey, o, cache);
+    // Stereo: the depths came with the corners (and are the same, below).
+    EXPECT_FALSE(cache.ms.count("stereo"));
+    detect_corners_ahead(third, *calib, sensor, o, cache);
     const auto a2 = track_points(p.cur, third, *calib, sensor, o, &cache);
     const auto a3 = track_points(q.prev, q.cur, *calib, sensor, o, &cache);  // not the cached images
     ASSERT_GT(a1.size(), 300u);
