@@ -26,6 +26,8 @@ void MotionCueOptions::read(const cv::FileNode& node) {
   read_option(node, "subpix_window", subpix_window);
   read_option(node, "lk_window", lk_window);
   read_option(node, "lk_levels", lk_levels);
+  read_option(node, "lk_max_iterations", lk_max_iterations);
+  read_option(node, "lk_epsilon", lk_epsilon);
   read_option(node, "forward_backward_max", forward_backward_max);
   read_option(node, "border", border);
   read_option(node, "depth_edge_radius", depth_edge_radius);
@@ -141,7 +143,8 @@ Flow track_forward_backward(const std::vector<cv::Mat>& a, const std::vector<cv:
   if (from.empty()) return f;
   const int win = lk_window(o);
   const int levels = lk_levels(o);
-  const cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 30, 0.01);
+  const cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, std::max(o.lk_max_iterations, 1),
+                              std::max(o.lk_epsilon, 0.0));
   std::vector<cv::Point2f> back;
   std::vector<unsigned char> st_f, st_b;
   std::vector<float> err;

@@ -35,6 +35,12 @@ struct MotionCueOptions {
   // between frames loses over 90 % of its tracks (measured on rendered views).
   int lk_window = 22;  // px, square
   int lk_levels = 5;
+  // Per-level stop of each LK track. DS-SLAM's code stops at 20 iterations
+  // (TermCriteria(COUNT | EPS, 20, 0.01)); ours allows 30: with 20, three of
+  // 60 masks changed on the synthetic stereo sequence (3 movers, seed 0) and
+  // `full`'s ATE went from 0.0034 to 0.0042 m.
+  int lk_max_iterations = 30;
+  double lk_epsilon = 0.01;  // px
   // Ours: a track is kept only when tracking the current point back lands
   // within this many pixels of where it started (rejects occlusions and drift).
   double forward_backward_max = 1.0;  // px
