@@ -62,3 +62,31 @@ def test_system_counts_bad_frames(data):
     assert counters["frames"] == 4 and counters["rejected"] == 3
     stamps, poses = system.trajectory()
     assert stamps.shape == (0,) and poses.shape == (0, 4, 4)
+
+
+def test_tracker_options_reach_the_system(data):
+    """TrackerOptions from Python: the monocular initialisation's feature
+    factor changes how many keypoints the first frame gets."""
+    o = core().TrackerOptions()
+    assert o.mono_init_feature_factor == 2 and o.mono_init_feature_frames == 0  # ORB-SLAM2's
+    provider = core().open_dataset("euroc", str(data / "euroc/MH_05_difficult_head"))
+    settings = provider.default_settings()
+    frame = provider.load(0)
+    counts = {}
+    for factor in (1, 4):
+        o.mono_init_feature_factor = factor
+        system = core().System(settings, "mono", synchronous_mapping=True, tracker=o)
+        counts[factor] = system.track_mono(frame.image, frame.stamp).keypoints
+    n = settings.n_features
+    assert counts[1] <= n * 1.05
+    assert counts[4] > 2 * n
+
+
+def test_run_names_a_bad_tracker_option(data, tmp_path):
+    from dynaorb.runner import RunOptions, run_dataset
+    base = dict(kind="euroc", path=str(data / "euroc/MH_05_difficult_head"), out=str(tmp_path / "o"),
+                vocabulary="none", progress=False)
+    with pytest.raises(ValueError, match="unknown tracker option 'mono_init_factor'"):
+        run_dataset(RunOptions(**base, tracker={"mono_init_factor": 5}))
+    with pytest.raises(ValueError, match="'mono_init_feature_frames': 2.5 is not a whole number"):
+        run_dataset(RunOptions(**base, tracker={"mono_init_feature_frames": 2.5}))

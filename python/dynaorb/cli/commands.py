@@ -17,9 +17,24 @@ def cmd_run(args) -> int:
                                    progress=not args.quiet,
                                    synchronous_mapping=not args.async_mapping,
                                    save_map=args.save_map,
-                                   load_map=args.load_map, localization=args.localization))
+                                   load_map=args.load_map, localization=args.localization,
+                                   tracker=key_values(args.tracker, "--tracker")))
     print(summary_line(args.out, stats))
     return 0
+
+
+def key_values(items: list[str], flag: str) -> dict:
+    """KEY=VALUE strings -> {KEY: float VALUE}; ValueError names a malformed one."""
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        try:
+            out[key.strip()] = float(value)
+        except ValueError:
+            sep = ""
+        if not sep or not key.strip():
+            raise ValueError(f"{flag} {item!r}: expected KEY=NUMBER")
+    return out
 
 
 def summary_line(out, stats: dict) -> str:

@@ -55,6 +55,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--localization", action="store_true",
                    help="localisation only: track in the map, no new keyframes or map points "
                         "(with --load-map)")
+    r.add_argument("--tracker", metavar="KEY=VALUE", action="append", default=[],
+                   help="a tracking option (a field of dynaorb._core.TrackerOptions), repeatable; e.g. "
+                        "--tracker mono_init_feature_factor=5 --tracker mono_init_feature_frames=40")
     r.set_defaults(func=commands.cmd_run)
 
     e = sub.add_parser("eval", help="ATE / RPE of an estimate against ground truth (evo)")

@@ -92,6 +92,9 @@ class RunOptions:
     save_map: str | None = None     # the map written here after the run
     load_map: str | None = None     # start from this saved map (needs a vocabulary)
     localization: bool = False      # localisation only: no new keyframes or map points
+    # Tracking options by name (_core.TrackerOptions fields, e.g.
+    # {"mono_init_feature_factor": 5, "mono_init_feature_frames": 40}); the rest keep their defaults.
+    tracker: dict | None = None
     # A provider object to run instead of opening kind/path (e.g. a
     # dynaorb.ros.bag.BagProvider); frames that carry `labels` (class ids)
     # get the mask of movable_ids when no other mask source is given.
@@ -230,10 +233,32 @@ def _mask_name(image_path: str) -> str:
     return pathlib.Path(image_path).with_suffix(".png").name
 
 
+def tracker_options(_core, values: dict | None):
+    """A _core.TrackerOptions with `values` (field name -> number) set, or
+    None for the defaults. ValueError names an unknown field or a bad value."""
+    if not values:
+        return None
+    o = _core.TrackerOptions()
+    for key, value in values.items():
+        if key.startswith("_") or not hasattr(o, key):
+            known = ", ".join(k for k in dir(o) if not k.startswith("_"))
+            raise ValueError(f"unknown tracker option '{key}' (known: {known})")
+        current = getattr(o, key)
+        try:
+            cast = type(current)(value) if not isinstance(current, bool) else bool(int(value))
+        except (TypeError, ValueError):
+            raise ValueError(f"tracker option '{key}': {value!r} is not a {type(current).__name__}") from None
+        if isinstance(current, int) and not isinstance(current, bool) and float(value) != cast:
+            raise ValueError(f"tracker option '{key}': {value!r} is not a whole number")
+        setattr(o, key, cast)
+    return o
+
+
 def run_dataset(opts: RunOptions) -> dict:
     """Runs a sequence; returns the stats also written to OUT/stats.json."""
     _core = core()
     resolve_dynamic(opts.dynamic)  # an unknown preset fails before anything is loaded
+    tracker = tracker_options(_core, opts.tracker)  # and so does an unknown tracker option
     if opts.labels and opts.segment:
         raise ValueError("give either a label folder (--labels) or a segmentation model (--segment), not both")
     segmenter, semantic = _semantic(opts)
@@ -288,7 +313,8 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
         elif segmenter is not None:
             dynamic.movable_classes = [int(i) for i in segmenter.card.movable]
     system = _core.System(settings, provider.sensor, synchronous_mapping=opts.synchronous_mapping,
-                          vocabulary=vocabulary, dynamic=dynamic if dynamic_on else None)
+                          vocabulary=vocabulary, dynamic=dynamic if dynamic_on else None,
+                          tracker=tracker)
     map_io = {}
     if opts.load_map:
         t0 = time.perf_counter()
@@ -405,6 +431,7 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
         "initializations": int(counters["initializations"]),
         "map": system.map_summary(),
         "synchronous_mapping": opts.synchronous_mapping,
+        "tracker_options": dict(opts.tracker or {}),
         "localization": opts.localization,
         "map_file": map_io or None,
         "stage_ms_median": _median_stages(per_frame_ms),
