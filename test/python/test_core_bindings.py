@@ -90,3 +90,12 @@ def test_run_names_a_bad_tracker_option(data, tmp_path):
         run_dataset(RunOptions(**base, tracker={"mono_init_factor": 5}))
     with pytest.raises(ValueError, match="'mono_init_feature_frames': 2.5 is not a whole number"):
         run_dataset(RunOptions(**base, tracker={"mono_init_feature_frames": 2.5}))
+
+
+def test_run_takes_tracker_options(data, tmp_path):
+    from dynaorb.runner import RunOptions, run_dataset
+    stats = run_dataset(RunOptions(kind="tum", path=str(data / "tum/rgbd_dataset_freiburg3_walking_xyz_fragment"),
+                                   out=str(tmp_path / "o"), vocabulary="none", progress=False,
+                                   tracker={"min_init_keypoints": 400}))
+    assert stats["tracker_options"] == {"min_init_keypoints": 400}
+    assert stats["tracked_frames"] >= 1

@@ -258,7 +258,7 @@ def run_dataset(opts: RunOptions) -> dict:
     """Runs a sequence; returns the stats also written to OUT/stats.json."""
     _core = core()
     resolve_dynamic(opts.dynamic)  # an unknown preset fails before anything is loaded
-    tracker = tracker_options(_core, opts.tracker)  # and so does an unknown tracker option
+    tracker_options(_core, opts.tracker)  # and so does an unknown tracker option
     if opts.labels and opts.segment:
         raise ValueError("give either a label folder (--labels) or a segmentation model (--segment), not both")
     segmenter, semantic = _semantic(opts)
@@ -314,7 +314,7 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
             dynamic.movable_classes = [int(i) for i in segmenter.card.movable]
     system = _core.System(settings, provider.sensor, synchronous_mapping=opts.synchronous_mapping,
                           vocabulary=vocabulary, dynamic=dynamic if dynamic_on else None,
-                          tracker=tracker)
+                          tracker=tracker_options(_core, opts.tracker))
     map_io = {}
     if opts.load_map:
         t0 = time.perf_counter()
