@@ -117,7 +117,13 @@ void prepare_keyframe_maps(const FrameData& f, const DdlOptions& o, bool check, 
 KeyframeEvidence::KeyframeEvidence(const cv::Mat& depth, const cv::Mat& grey,
                                    const std::vector<cv::Point2f>& rays, const std::vector<Reference>& refs,
                                    const view::Camera& camera, const DdlOptions& o)
-    : depth_(depth), rays_(rays), camera_(camera), o_(o), cache_(depth.size(), CV_8UC1, cv::Scalar(0)) {
+    : depth_(depth),
+      rays_(rays),
+      camera_(camera),
+      o_(o),
+      cache_(depth.size(), CV_8UC1, cv::Scalar(0)),
+      area_(depth.size(), CV_8UC1, cv::Scalar(0)),
+      block_(depth.size(), CV_8UC1, cv::Scalar(0)) {
   texture_ = o.confirm_min_zncc > -1 && grey.size() == depth.size() && grey.type() == CV_8UC1;
   if (texture_) {
     smooth(grey, grey_, o_);
@@ -156,18 +162,28 @@ Seen KeyframeEvidence::operator()(int x, int y) {
   return static_cast<Seen>(c);
 }
 
+bool KeyframeEvidence::moving_block(int x, int y) {
+  if (x < 1 || y < 1 || x >= cache_.cols - 1 || y >= cache_.rows - 1) return false;
+  unsigned char& b = block_.at<unsigned char>(y, x);
+  if (b == 0) {
+    bool all = true;
+    for (int v = y - 1; v <= y + 1 && all; ++v)
+      for (int u = x - 1; u <= x + 1 && all; ++u) all = (*this)(u, v) == Seen::kMoving;
+    b = all ? 2 : 1;
+  }
+  return b == 2;
+}
+
 bool KeyframeEvidence::moving_area(int x, int y) {
-  if ((*this)(x, y) != Seen::kMoving) return false;
-  const int w = cache_.cols, h = cache_.rows;
-  for (int cy = y - 1; cy <= y + 1; ++cy)
-    for (int cx = x - 1; cx <= x + 1; ++cx) {
-      bool all = true;
-      for (int v = cy - 1; v <= cy + 1 && all; ++v)
-        for (int u = cx - 1; u <= cx + 1 && all; ++u)
-          all = u >= 0 && v >= 0 && u < w && v < h && (*this)(u, v) == Seen::kMoving;
-      if (all) return true;
-    }
-  return false;
+  unsigned char& a = area_.at<unsigned char>(y, x);
+  if (a == 0) {
+    bool any = false;
+    if ((*this)(x, y) == Seen::kMoving)
+      for (int cy = y - 1; cy <= y + 1 && !any; ++cy)
+        for (int cx = x - 1; cx <= x + 1 && !any; ++cx) any = moving_block(cx, cy);
+    a = any ? 2 : 1;
+  }
+  return a == 2;
 }
 
 void KeyframeEvidence::warp_tiles(const cv::Rect& r) {

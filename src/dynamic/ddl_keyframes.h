@@ -96,7 +96,9 @@ class KeyframeEvidence {
   // Moving, and part of a 3x3 block of moving pixels (a morphological
   // opening): depth edges of a real sensor do not sit exactly where the
   // colour edges are, and leave lines of "moving" a pixel or two wide along
-  // static silhouettes; moving objects are areas.
+  // static silhouettes; moving objects are areas. Cached per pixel, as are
+  // the blocks: region growing asks about each neighbour of the region,
+  // most of them several times.
   bool moving_area(int x, int y);
 
  private:
@@ -114,6 +116,8 @@ class KeyframeEvidence {
   void warp_tiles(const cv::Rect& r);
   void warp_tile(Warped& wk, const cv::Rect& tile);
   Seen classify(int x, int y);
+  // The 3x3 block centred on (x, y) lies in the image and all of it is moving.
+  bool moving_block(int x, int y);
   bool texture_agrees(const Warped& wk, int x, int y) const;
 
   const cv::Mat& depth_;
@@ -127,6 +131,8 @@ class KeyframeEvidence {
   int tiles_x_ = 0, tiles_y_ = 0;
   std::vector<unsigned char> tile_done_;
   cv::Mat cache_;
+  cv::Mat area_;   // CV_8UC1 moving_area: 0 not asked yet, 1 no, 2 yes
+  cv::Mat block_;  // CV_8UC1 moving_block, the same code
 };
 
 // Ours: the pose DDL-SLAM checks with comes from its low-cost tracking,
