@@ -32,8 +32,13 @@ struct KeyframeMaps {
 };
 
 // refine_pose's Lucas-Kanade window and pyramid levels above the image.
+// Two levels (neither paper prescribes LK here): LK starts where the given
+// pose projects a point and a shift beyond refine_max_shift_px (30 px) is
+// dropped anyway; a 21x21 window two octaves up follows about 10 px x 4 =
+// 40 px. A third level (as before) cost a quarter more LK time and gave
+// the same masks on `dynaorb synth --movers 3` seed 0 (ddl and full).
 inline const cv::Size kRefineWindow(21, 21);
-constexpr int kRefineLevels = 3;
+constexpr int kRefineLevels = 2;
 
 // Makes what `m` lacks of the check images (check) and the LK pyramid
 // (pyramid) for frame `f`. Without a depth image the check images stay empty.
