@@ -143,11 +143,14 @@ KeyframeEvidence::KeyframeEvidence(const cv::Mat& depth, const cv::Mat& grey,
     if (!r.dense || !r.maps || r.maps->depth.empty()) continue;
     Warped wk;
     wk.ref = &r;
-    wk.agree = cv::Mat(size, CV_8UC1, cv::Scalar(0));
-    wk.through = cv::Mat(size, CV_8UC1, cv::Scalar(0));
+    // Not cleared here: warp_tile writes every pixel of a tile before any
+    // of them is read (pixels are read only in tiles already resampled),
+    // and most tiles are never asked about.
+    wk.agree.create(size, CV_8UC1);
+    wk.through.create(size, CV_8UC1);
     if (texture_ && !r.maps->grey.empty()) {
-      wk.grey = cv::Mat(size, CV_32FC1, cv::Scalar(0));
-      wk.usable = cv::Mat(size, CV_8UC1, cv::Scalar(0));
+      wk.grey.create(size, CV_32FC1);
+      wk.usable.create(size, CV_8UC1);
     }
     warped_.push_back(std::move(wk));
   }
@@ -227,25 +230,30 @@ void KeyframeEvidence::warp_tile(Warped& wk, const cv::Rect& tile) {
     }
   }
   const float far = std::numeric_limits<float>::max();
-  cv::Mat d_near, d_min, d_max;
-  cv::remap(km.depth, d_near, map_x, map_y, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
-  cv::remap(km.depth_min, d_min, map_x, map_y, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
-  cv::remap(km.depth_max, d_max, map_x, map_y, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
   const float tau = static_cast<float>(o_.depth_threshold_m);
   for (int j = 0; j < tile.height; ++j) {
+    const float* mx = map_x.ptr<float>(j);
+    const float* my = map_y.ptr<float>(j);
     const float* zk = z_k.ptr<float>(j);
-    const float* dn = d_near.ptr<float>(j);
-    const float* dl = d_min.ptr<float>(j);
-    const float* dh = d_max.ptr<float>(j);
     unsigned char* a = wk.agree.ptr<unsigned char>(tile.y + j) + tile.x;
     unsigned char* t = wk.through.ptr<unsigned char>(tile.y + j) + tile.x;
+    std::fill(a, a + tile.width, 0);
+    std::fill(t, t + tile.width, 0);
     for (int i = 0; i < tile.width; ++i) {
-      if (zk[i] <= 0.f || dh[i] <= 0.f) continue;
+      if (zk[i] <= 0.f) continue;
+      // The keyframe's depths at the nearest pixel, as cv::remap with
+      // INTER_NEAREST reads them (coordinates rounded by cvRound, 0 outside;
+      // a pixel with zk > 0 was projected inside).
+      const int qx = cvRound(mx[i]), qy = cvRound(my[i]);
+      if (qx < 0 || qy < 0 || qx >= ksize.width || qy >= ksize.height) continue;
+      const float dn = km.depth.at<float>(qy, qx), dl = km.depth_min.at<float>(qy, qx),
+                  dh = km.depth_max.at<float>(qy, qx);
+      if (dh <= 0.f) continue;
       const auto near = [&](float v) { return v > 0.f && v < far && std::abs(v - zk[i]) <= tau; };
       // 2: the keyframe's window lies on one surface, so its grey there is
       // that surface's and not blended with a neighbour across a depth edge.
-      if (near(dn[i]) || near(dl[i]) || near(dh[i])) a[i] = dh[i] - dl[i] <= tau ? 2 : 1;
-      else if (dl[i] > zk[i] + tau && dl[i] < far) t[i] = 1;
+      if (near(dn) || near(dl) || near(dh)) a[i] = dh - dl <= tau ? 2 : 1;
+      else if (dl > zk[i] + tau && dl < far) t[i] = 1;
     }
   }
   if (!wk.grey.empty()) {
