@@ -116,11 +116,17 @@ class KeyframeEvidence {
     cv::Mat usable;   // CV_8UC1 (with grey): agree == 2 and no current depth edge, the texture test's pixels
   };
   static constexpr int kTile = 32;  // px, square
+  static constexpr int kTextureLanes = 2;
 
   // Resamples every keyframe on the tiles that hold the rectangle (clipped to the image).
   void warp_tiles(const cv::Rect& r);
   void warp_tile(Warped& wk, const cv::Rect& tile);
   Seen classify(int x, int y);
+  // Whether one of the kTextureLanes keyframes `wks` agrees in texture at
+  // (x, y): texture_agrees of each in one pass over the patch (each
+  // keyframe's sums taken in the same order, so each answer is
+  // texture_agrees's).
+  bool texture_agrees_lanes(const Warped* const* wks, int x, int y) const;
   // The 3x3 block centred on (x, y) lies in the image and all of it is moving.
   bool moving_block(int x, int y);
   bool texture_agrees(const Warped& wk, int x, int y) const;
