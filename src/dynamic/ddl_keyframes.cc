@@ -104,15 +104,17 @@ void prepare_keyframe_maps(const FrameData& f, const DdlOptions& o, bool check, 
   // projection a pixel off a depth edge still finds P's surface (DynaSLAM's
   // code searches a window for z' likewise).
   const float far = std::numeric_limits<float>::max();
-  f.depth.copyTo(m.depth);
-  cv::patchNaNs(m.depth, 0);
-  const cv::Mat holes = m.depth <= 0;
-  cv::Mat min_src = m.depth.clone();
+  cv::Mat depth = f.depth.clone(), depth_min, depth_max;
+  cv::patchNaNs(depth, 0);
+  const cv::Mat holes = depth <= 0;
+  cv::Mat min_src = depth.clone();
   min_src.setTo(far, holes);
   const int r = std::max(0, o.confirm_search_radius_px);
   const cv::Mat window = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * r + 1, 2 * r + 1));
-  cv::erode(min_src, m.depth_min, window);
-  cv::dilate(m.depth, m.depth_max, window);
+  cv::erode(min_src, depth_min, window);
+  cv::dilate(depth, depth_max, window);
+  const cv::Mat planes[4] = {depth, depth_min, depth_max, cv::Mat::zeros(depth.size(), CV_32FC1)};
+  cv::merge(planes, 4, m.depths);
   if (o.confirm_min_zncc > -1 && !f.grey.empty() && f.grey.size() == f.depth.size() && f.grey.type() == CV_8UC1)
     smooth(f.grey, m.grey, o);
 }
@@ -143,7 +145,7 @@ KeyframeEvidence::KeyframeEvidence(const cv::Mat& depth, const cv::Mat& grey,
   }
   const cv::Size size = depth.size();
   for (const Reference& r : refs) {
-    if (!r.dense || !r.maps || r.maps->depth.empty()) continue;
+    if (!r.dense || !r.maps || r.maps->depths.empty()) continue;
     Warped wk;
     wk.ref = &r;
     // Not cleared here: warp_tile writes every pixel of a tile before any
@@ -211,7 +213,7 @@ void KeyframeEvidence::warp_tile(Warped& wk, const cv::Rect& tile) {
   const Reference& ref = *wk.ref;
   const KeyframeMaps& km = *ref.maps;
   const int w = depth_.cols;
-  const cv::Size ksize = km.depth.size();
+  const cv::Size ksize = km.depths.size();
   cv::Mat map_x(tile.size(), CV_32FC1, cv::Scalar(-1)), map_y(tile.size(), CV_32FC1, cv::Scalar(-1));
   cv::Mat z_k(tile.size(), CV_32FC1, cv::Scalar(0));
   for (int j = 0; j < tile.height; ++j) {
@@ -249,8 +251,8 @@ void KeyframeEvidence::warp_tile(Warped& wk, const cv::Rect& tile) {
       // a pixel with zk > 0 was projected inside).
       const int qx = cvRound(mx[i]), qy = cvRound(my[i]);
       if (qx < 0 || qy < 0 || qx >= ksize.width || qy >= ksize.height) continue;
-      const float dn = km.depth.at<float>(qy, qx), dl = km.depth_min.at<float>(qy, qx),
-                  dh = km.depth_max.at<float>(qy, qx);
+      const cv::Vec4f& dk = km.depths.at<cv::Vec4f>(qy, qx);
+      const float dn = dk[0], dl = dk[1], dh = dk[2];
       if (dh <= 0.f) continue;
       const auto near = [&](float v) { return v > 0.f && v < far && std::abs(v - zk[i]) <= tau; };
       // 2: the keyframe's window lies on one surface, so its grey there is

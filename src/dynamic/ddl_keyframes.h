@@ -19,12 +19,14 @@ namespace dynaorb::dynamic::ddl {
 // keyframe and the options only, so the stage prepares them once per
 // keyframe and keeps them while the keyframe is remembered.
 struct KeyframeMaps {
-  cv::Mat depth;      // CV_32FC1, NaN -> 0
-  cv::Mat depth_min;  // least valid depth in the (2r+1)^2 window, r = confirm_search_radius_px
-                      //   (FLT_MAX where the window holds none)
-  cv::Mat depth_max;  // greatest depth in the window (0 where none)
+  // CV_32FC4 per pixel: the depth (NaN -> 0); the least valid depth in the
+  // (2r+1)^2 window, r = confirm_search_radius_px (FLT_MAX where the window
+  // holds none); the greatest depth in the window (0 where none); 0. One
+  // pixel's three in one cache line: the keyframe check reads them together
+  // at scattered pixels.
+  cv::Mat depths;
   cv::Mat grey;       // CV_32FC1 smoothed grey; empty without a usable grey image or texture test
-  bool check = false;  // the four above are made
+  bool check = false;  // depths and grey are made
   // The keyframe grey's LK pyramid (with derivatives) for refine_pose; empty
   // when not made or without a usable grey image.
   std::vector<cv::Mat> pyramid;
