@@ -19,12 +19,14 @@ namespace dynaorb::dynamic::ddl {
 // keyframe and the options only, so the stage prepares them once per
 // keyframe and keeps them while the keyframe is remembered.
 struct KeyframeMaps {
-  cv::Mat depth;      // CV_32FC1, NaN -> 0
-  cv::Mat depth_min;  // least valid depth in the (2r+1)^2 window, r = confirm_search_radius_px
-                      //   (FLT_MAX where the window holds none)
-  cv::Mat depth_max;  // greatest depth in the window (0 where none)
+  // CV_32FC4 per pixel: the depth (NaN -> 0); the least valid depth in the
+  // (2r+1)^2 window, r = confirm_search_radius_px (FLT_MAX where the window
+  // holds none); the greatest depth in the window (0 where none); 0. One
+  // pixel's three in one cache line: the keyframe check reads them together
+  // at scattered pixels.
+  cv::Mat depths;
   cv::Mat grey;       // CV_32FC1 smoothed grey; empty without a usable grey image or texture test
-  bool check = false;  // the four above are made
+  bool check = false;  // depths and grey are made
   // The keyframe grey's LK pyramid (with derivatives) for refine_pose; empty
   // when not made or without a usable grey image.
   std::vector<cv::Mat> pyramid;
@@ -32,8 +34,13 @@ struct KeyframeMaps {
 };
 
 // refine_pose's Lucas-Kanade window and pyramid levels above the image.
+// Two levels (neither paper prescribes LK here): LK starts where the given
+// pose projects a point and a shift beyond refine_max_shift_px (30 px) is
+// dropped anyway; a 21x21 window two octaves up follows about 10 px x 4 =
+// 40 px. A third level (as before) cost a quarter more LK time and gave
+// the same masks on `dynaorb synth --movers 3` seed 0 (ddl and full).
 inline const cv::Size kRefineWindow(21, 21);
-constexpr int kRefineLevels = 3;
+constexpr int kRefineLevels = 2;
 
 // Makes what `m` lacks of the check images (check) and the LK pyramid
 // (pyramid) for frame `f`. Without a depth image the check images stay empty.
@@ -96,7 +103,9 @@ class KeyframeEvidence {
   // Moving, and part of a 3x3 block of moving pixels (a morphological
   // opening): depth edges of a real sensor do not sit exactly where the
   // colour edges are, and leave lines of "moving" a pixel or two wide along
-  // static silhouettes; moving objects are areas.
+  // static silhouettes; moving objects are areas. Cached per pixel, as are
+  // the blocks: region growing asks about each neighbour of the region,
+  // most of them several times.
   bool moving_area(int x, int y);
 
  private:
@@ -109,11 +118,19 @@ class KeyframeEvidence {
     cv::Mat usable;   // CV_8UC1 (with grey): agree == 2 and no current depth edge, the texture test's pixels
   };
   static constexpr int kTile = 32;  // px, square
+  static constexpr int kTextureLanes = 2;
 
   // Resamples every keyframe on the tiles that hold the rectangle (clipped to the image).
   void warp_tiles(const cv::Rect& r);
   void warp_tile(Warped& wk, const cv::Rect& tile);
   Seen classify(int x, int y);
+  // Whether one of the kTextureLanes keyframes `wks` agrees in texture at
+  // (x, y): texture_agrees of each in one pass over the patch (each
+  // keyframe's sums taken in the same order, so each answer is
+  // texture_agrees's).
+  bool texture_agrees_lanes(const Warped* const* wks, int x, int y) const;
+  // The 3x3 block centred on (x, y) lies in the image and all of it is moving.
+  bool moving_block(int x, int y);
   bool texture_agrees(const Warped& wk, int x, int y) const;
 
   const cv::Mat& depth_;
@@ -127,6 +144,8 @@ class KeyframeEvidence {
   int tiles_x_ = 0, tiles_y_ = 0;
   std::vector<unsigned char> tile_done_;
   cv::Mat cache_;
+  cv::Mat area_;   // CV_8UC1 moving_area: 0 not asked yet, 1 no, 2 yes
+  cv::Mat block_;  // CV_8UC1 moving_block, the same code
 };
 
 // Ours: the pose DDL-SLAM checks with comes from its low-cost tracking,

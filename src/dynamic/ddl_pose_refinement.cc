@@ -19,8 +19,10 @@ std::optional<Eigen::Isometry3d> refine_pose(const std::vector<Reference>& refs,
   const cv::Size size = grey.size();
   const cv::Size window = kRefineWindow;
   constexpr int kLevels = kRefineLevels;
-  std::vector<cv::Mat> pyramid;  // the current image's, built once for all keyframes
-  cv::buildOpticalFlowPyramid(grey, pyramid, window, kLevels);
+  // The current image's, built once for all keyframes; without derivatives:
+  // calcOpticalFlowPyrLK reads only the first image's.
+  std::vector<cv::Mat> pyramid;
+  cv::buildOpticalFlowPyramid(grey, pyramid, window, kLevels, false);
   for (const Reference& r : refs) {
     const cv::Mat& kf_grey = r.kf->frame->grey;
     if (kf_grey.empty() || kf_grey.type() != CV_8UC1 || kf_grey.size() != size) continue;

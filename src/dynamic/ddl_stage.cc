@@ -83,8 +83,15 @@ std::optional<Eigen::Isometry3d> current_pose(const Context& ctx, int& source) {
 
 }  // namespace
 
-cv::Mat ddl_grow_regions(const cv::Mat& depth, const std::vector<cv::Point>& seeds, const DdlOptions& o,
-                         const std::function<bool(int, int)>& blocked) {
+namespace {
+
+// ddl_grow_regions with the test for a pixel kept out as a template
+// parameter: the stage's test is asked for every neighbour the region
+// reaches, and a call through std::function there costs more than the
+// cached answer.
+template <class Blocked>
+cv::Mat grow_regions(const cv::Mat& depth, const std::vector<cv::Point>& seeds, const DdlOptions& o,
+                     Blocked&& blocked) {
   cv::Mat region(depth.size(), CV_8UC1, cv::Scalar(0));
   if (depth.empty() || depth.type() != CV_32FC1) return region;
   const int w = depth.cols, h = depth.rows;
@@ -112,13 +119,21 @@ cv::Mat ddl_grow_regions(const cv::Mat& depth, const std::vector<cv::Point>& see
         if (!view::valid_depth(zq)) continue;
         if (std::abs(1.0 / zq - 1.0 / zp) > step) continue;
         if (band > 0 && std::abs(zq - zs) > band) continue;
-        if (blocked && blocked(nx[k], ny[k])) continue;
+        if (blocked(nx[k], ny[k])) continue;
         m = 255;
         queue.push_back(ny[k] * w + nx[k]);
       }
     }
   }
   return region;
+}
+
+}  // namespace
+
+cv::Mat ddl_grow_regions(const cv::Mat& depth, const std::vector<cv::Point>& seeds, const DdlOptions& o,
+                         const std::function<bool(int, int)>& blocked) {
+  if (!blocked) return grow_regions(depth, seeds, o, [](int, int) { return false; });
+  return grow_regions(depth, seeds, o, blocked);
 }
 
 void DdlStage::reset() { keyframe_maps_.clear(); }
@@ -340,15 +355,16 @@ void DdlStage::process(Context& ctx, StageReport& report) {
   // Growing needs evidence of motion at every pixel it takes: seen static
   // stops it, and so does a place no keyframe saw (background that was
   // always hidden continues the floor's depth as much as the object does).
-  std::function<bool(int, int)> blocked;
+  t_part = Clock::now();
+  cv::Mat region;
   if (o_.confirm_with_keyframes) {
-    blocked = [&](int x, int y) {
+    region = grow_regions(cur.depth, seeds, o_, [&](int x, int y) {
       evidence(x, y);  // builds the evidence on first use
       return !keyframe_evidence->moving_area(x, y);
-    };
+    });
+  } else {
+    region = grow_regions(cur.depth, seeds, o_, [](int, int) { return false; });
   }
-  t_part = Clock::now();
-  cv::Mat region = ddl_grow_regions(cur.depth, seeds, o_, blocked);
   report.values["grow_ms"] = ms_since(t_part);
   // Part of check_ms or grow_ms, whichever built it first.
   report.values["evidence_build_ms"] = evidence_ms;
