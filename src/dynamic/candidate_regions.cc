@@ -36,7 +36,7 @@ CandidateBlobs candidate_blobs(const cv::Mat& candidates) {
   CandidateBlobs b;
   if (candidates.empty() || candidates.type() != CV_8UC1) return b;
   cv::Mat centroids;
-  b.count = cv::connectedComponentsWithStats(candidates != 0, b.comp, b.stats, centroids, 8, CV_32S) - 1;
+  b.count = cv::connectedComponentsWithStats(candidates, b.comp, b.stats, centroids, 8, CV_32S) - 1;  // non-zero is foreground
   return b;
 }
 
