@@ -208,11 +208,15 @@ std::vector<float> stereo_depths(const std::vector<cv::Mat>& left_pyramid, const
 
 namespace {
 
+// A depth image (RGB-D, or a stage's stereo depth) the corners' depth is read from.
+bool has_depth_image(const FrameData& f) {
+  return !f.depth.empty() && f.depth.type() == CV_32FC1 && f.depth.size() == f.grey.size();
+}
+
 // What track_points does for stereo depth: a rectified right image and no
 // depth image.
 bool wants_stereo_depth(const FrameData& f, const map::Calibration& calib, Sensor sensor) {
-  const bool depth_image = !f.depth.empty() && f.depth.type() == CV_32FC1 && f.depth.size() == f.grey.size();
-  return !depth_image && sensor == Sensor::kStereo && is_grey(f.right) && f.right.size() == f.grey.size() &&
+  return !has_depth_image(f) && sensor == Sensor::kStereo && is_grey(f.right) && f.right.size() == f.grey.size() &&
          calib.bf > 0;
 }
 
@@ -289,7 +293,7 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
       out[i].in_candidate = mask_at(prev.candidates, kept_prev[i]) || mask_at(cur.candidates, kept_cur[i]);
     }
 
-    if (!prev.depth.empty() && prev.depth.type() == CV_32FC1 && prev.depth.size() == size) {
+    if (has_depth_image(prev)) {
       for (auto& p : out) p.prev_depth = depth_at(prev.depth, p.prev, o);
     } else if (wants_stereo_depth(prev, calib, sensor)) {
       if (detected.right_depth.size() == corners.size()) {

@@ -258,12 +258,12 @@ def run_dataset(opts: RunOptions) -> dict:
     """Runs a sequence; returns the stats also written to OUT/stats.json."""
     _core = core()
     resolve_dynamic(opts.dynamic)  # an unknown preset fails before anything is loaded
-    tracker_options(_core, opts.tracker)  # and so does an unknown tracker option
+    tracker = tracker_options(_core, opts.tracker)  # and so does an unknown tracker option
     if opts.labels and opts.segment:
         raise ValueError("give either a label folder (--labels) or a segmentation model (--segment), not both")
     segmenter, semantic = _semantic(opts)
     try:
-        return _run(_core, opts, segmenter, semantic)
+        return _run(_core, opts, segmenter, semantic, tracker)
     finally:
         if semantic is not None:
             semantic.close()
@@ -287,7 +287,7 @@ def _label_mask(labels, movable: np.ndarray):
     return np.where(movable[labels], np.uint8(255), np.uint8(0))
 
 
-def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
+def _run(_core, opts: RunOptions, segmenter, semantic, tracker) -> dict:
     provider = opts.provider if opts.provider is not None else _core.open_dataset(opts.kind, opts.path, opts.sensor)
     for w in provider.warnings:
         log.warning("%s: %s", opts.path, w)
@@ -314,7 +314,7 @@ def _run(_core, opts: RunOptions, segmenter, semantic) -> dict:
             dynamic.movable_classes = [int(i) for i in segmenter.card.movable]
     system = _core.System(settings, provider.sensor, synchronous_mapping=opts.synchronous_mapping,
                           vocabulary=vocabulary, dynamic=dynamic if dynamic_on else None,
-                          tracker=tracker_options(_core, opts.tracker))
+                          tracker=tracker)
     map_io = {}
     if opts.load_map:
         t0 = time.perf_counter()
