@@ -89,22 +89,26 @@ struct TrackerOptions {
   int reset_after_lost = 10;
   // Monocular initialisation (ORB-SLAM2's MonocularInitialization).
   // Features extracted while a monocular map is initialised, as a multiple of
-  // nFeatures: ORB-SLAM2's 2 (ORB-SLAM3 takes 5). Measured on EuRoC MH_05
-  // (synchronous mapping): 2 -> first map at frame 85, every later frame
-  // tracked; 3 -> frame 54, all tracked; 4 and 5 -> frame 8, from the first
-  // centimetre of motion over the wooden platform, lost for good 16 frames on.
-  int mono_init_feature_factor = 2;
-  // Frames after the one that made the monocular map that are still
-  // extracted with the larger feature count. ORB-SLAM3 (Tracking::
-  // GrabImageMonocular) keeps its 5x extractor while `lastID - initID <
-  // mMaxFrames`, lastID a frame id and initID the second keyframe's id, i.e.
-  // about the first fps frames of the sequence for the first map; we count
-  // frames from the initialisation instead. 0: ORB-SLAM2 (back to nFeatures
-  // at once). Measured on MH_05 with factor 5 (map at frame 8, from 6 mm of
-  // motion): 0 and 20 -> lost for good after frame 31 (tracked points fall
-  // from 164 to 31 once the frames have 1000 keypoints); 40 and 60 -> every
-  // later frame tracked, ATE 0.086 / 0.084 m (Sim3).
-  int mono_init_feature_frames = 0;
+  // nFeatures (ORB-SLAM2 takes 2, ORB-SLAM3 5), and frames after the one that
+  // made the map that are still extracted with that count. ORB-SLAM3
+  // (Tracking::GrabImageMonocular) keeps its 5x extractor while `lastID -
+  // initID < mMaxFrames` (about the first fps frames); ORB-SLAM2 goes back to
+  // nFeatures at once (frames 0). Our defaults, 4x and 60 frames, are chosen by
+  // measurement on EuRoC MH_05_difficult_head (`dynaorb run euroc ... --sensor
+  // mono --tracker KEY=VALUE`, synchronous mapping, Sim3 ATE over the tracked
+  // frames):
+  //   factor 2, frames 0 (ORB-SLAM2): first map at frame 85, all later tracked, 0.012 m
+  //   factor 3, frames 0 / 20:        frame 54, all tracked, 0.017 / 0.014 m
+  //   factor 4, frames 0 / 20:        frame 8 (from the first centimetre of motion over
+  //                                   the wooden platform), lost for good ~20 frames on
+  //                                   (tracked points fall once frames have 1000 keypoints)
+  //   factor 4, frames 40/50/60/80/100: frame 8, 242/242 tracked, 0.0126/0.0125/0.0115/
+  //                                   0.0123/0.0112 m
+  //   factor 5, frames 40 / 60 / 100: frame 8, all tracked, 0.086 / 0.084 / 0.081 m
+  //   ORB-SLAM3 (pyorbslam3 0.1.1, its 5x): map at frame 11, then 62 frames lost, 71 %
+  //                                   tracked, 0.012-0.014 m over those
+  int mono_init_feature_factor = 4;
+  int mono_init_feature_frames = 60;
   int mono_init_min_keypoints = 100;  // reference and current frame: more keypoints than this
   double mono_init_window = 100.0;    // SearchForInitialization window, pixels
   double mono_init_nn_ratio = 0.9;    // best / second best descriptor distance
