@@ -24,6 +24,13 @@ void DmOptions::read(const cv::FileNode& node) {
   read_option(node, "min_region_points", min_region_points);
   read_option(node, "few_points_policy", few_points_policy);
   read_option(node, "split_by_label", split_by_label);
+  read_option(node, "keep_moving_frames", keep_moving_frames);
+  read_option(node, "keep_moving_frames_mono", keep_moving_frames_mono);
+  read_option(node, "keep_moving_overlap", keep_moving_overlap);
+  if (keep_moving_frames < 0 || keep_moving_frames_mono < 0)
+    throw InputError("options 'keep_moving_frames' and 'keep_moving_frames_mono' must be >= 0");
+  if (!(keep_moving_overlap > 0 && keep_moving_overlap <= 1))
+    throw InputError("option 'keep_moving_overlap' must be in (0, 1]");
   if (few_points_policy != "previous" && few_points_policy != "static" && few_points_policy != "dynamic")
     throw InputError("option 'few_points_policy' must be previous, static or dynamic, not '" +
                      few_points_policy + "'");
@@ -36,7 +43,7 @@ bool DmStage::needs_motion_cues_for(const Context& ctx) const {
 
 void DmStage::reset() {
   memory_frame_ = -1;
-  memory_dynamic_.release();
+  memory_age_.release();
   memory_static_.release();
 }
 
@@ -79,8 +86,8 @@ void DmStage::process(Context& ctx, StageReport& report) {
   const bool mono = ctx.sensor == Sensor::kMono;
   // The memory only speaks for the frame right before this one.
   const bool memory_usable = ctx.previous && memory_frame_ >= 0 && ctx.previous->id == memory_frame_ &&
-                             memory_dynamic_.size() == ctx.current.candidates.size();
-  cv::Mat prev_dynamic = memory_usable ? memory_dynamic_ : cv::Mat();
+                             memory_age_.size() == ctx.current.candidates.size();
+  cv::Mat prev_age = memory_usable ? memory_age_ : cv::Mat();  // non-zero: dynamic
   cv::Mat prev_static = memory_usable ? memory_static_ : cv::Mat();
   reset();
   auto skip = [&](const char* why) { val[why] = 1; };
@@ -227,52 +234,72 @@ void DmStage::process(Context& ctx, StageReport& report) {
 
   if (ctx.dynamic.empty()) ctx.dynamic = cv::Mat(cand.size(), CV_8UC1, cv::Scalar(0));
   // Under the "previous" policy a region with too few points takes the
-  // decision that covered more of it in the frame before: its overlaps with
-  // both, counted in one pass over the region image.
+  // decision that covered more of it in the frame before, and a region that
+  // keeps moving is one mostly covered by a region found moving then: its
+  // overlaps with both, and the least age of the dynamic pixels it covers,
+  // counted in one pass over the region image.
+  const int keep_frames = mono ? o.keep_moving_frames_mono : o.keep_moving_frames;
   std::vector<int> overlap_dyn(regions.count + 1, 0), overlap_static(regions.count + 1, 0);
-  if (o.few_points_policy == "previous" && !prev_dynamic.empty()) {
+  std::vector<int> least_age(regions.count + 1, 255);
+  if ((o.few_points_policy == "previous" || keep_frames > 0) && !prev_age.empty()) {
     for (int y = 0; y < regions.ids.rows; ++y) {
       const int* id = regions.ids.ptr<int>(y);
-      const unsigned char* pd = prev_dynamic.ptr<unsigned char>(y);
+      const unsigned char* pa = prev_age.ptr<unsigned char>(y);
       const unsigned char* ps = prev_static.ptr<unsigned char>(y);
       for (int x = 0; x < regions.ids.cols; ++x)
         if (id[x] > 0) {
-          overlap_dyn[id[x]] += pd[x] != 0;
+          if (pa[x] != 0) {
+            ++overlap_dyn[id[x]];
+            least_age[id[x]] = std::min<int>(least_age[id[x]], pa[x]);
+          }
           overlap_static[id[x]] += ps[x] != 0;
         }
     }
   }
   const double fraction = mono ? o.region_dynamic_fraction_mono : o.region_dynamic_fraction;
-  std::vector<unsigned char> region_dynamic(regions.count + 1, 0);
-  int marked = 0, few = 0, few_kept_dynamic = 0;
+  // Age of each dynamic region: 1 when its own points proved it moving in
+  // this frame, else one more than the least age of what it inherited.
+  std::vector<unsigned char> region_age(regions.count + 1, 0);
+  int marked = 0, few = 0, few_kept_dynamic = 0, kept_moving = 0;
   for (int r = 1; r <= regions.count; ++r) {
-    bool dyn = false;
+    bool dyn = false, proven = false;
     if (n_judged[r] >= std::max(o.min_region_points, 1)) {
-      dyn = static_cast<double>(n_dynamic[r]) >= fraction * n_judged[r];
+      dyn = proven = static_cast<double>(n_dynamic[r]) >= fraction * n_judged[r];
     } else {
       ++few;
       if (o.few_points_policy == "dynamic") {
-        dyn = true;
-      } else if (o.few_points_policy == "previous" && !prev_dynamic.empty()) {
+        dyn = proven = true;
+      } else if (o.few_points_policy == "previous" && !prev_age.empty()) {
         dyn = overlap_dyn[r] > 0 && overlap_dyn[r] >= overlap_static[r];
       }
       few_kept_dynamic += dyn;
     }
-    region_dynamic[r] = dyn;
+    if (!dyn && keep_frames > 0 && least_age[r] <= keep_frames &&
+        overlap_dyn[r] >= o.keep_moving_overlap * regions.pixels[r - 1]) {
+      dyn = true;
+      ++kept_moving;
+    }
+    if (dyn) region_age[r] = proven ? 1 : static_cast<unsigned char>(std::min(least_age[r] + 1, 255));
     marked += dyn;
   }
-  cv::Mat decided_dynamic(cand.size(), CV_8UC1, cv::Scalar(0));
+  cv::Mat decided_age(cand.size(), CV_8UC1, cv::Scalar(0));
   cv::Mat decided_static(cand.size(), CV_8UC1, cv::Scalar(0));
   for (int y = 0; y < regions.ids.rows; ++y) {
     const int* id = regions.ids.ptr<int>(y);
-    unsigned char* dd = decided_dynamic.ptr<unsigned char>(y);
+    unsigned char* da = decided_age.ptr<unsigned char>(y);
     unsigned char* ds = decided_static.ptr<unsigned char>(y);
     for (int x = 0; x < regions.ids.cols; ++x)
-      if (id[x] > 0) (region_dynamic[id[x]] ? dd : ds)[x] = 255;
+      if (id[x] > 0) {
+        if (region_age[id[x]] != 0)
+          da[x] = region_age[id[x]];
+        else
+          ds[x] = 255;
+      }
   }
+  cv::Mat decided_dynamic = decided_age != 0;
   cv::bitwise_or(ctx.dynamic, decided_dynamic, ctx.dynamic);
   memory_frame_ = ctx.current.id;
-  memory_dynamic_ = decided_dynamic;
+  memory_age_ = decided_age;
   memory_static_ = decided_static;
 
   report.regions = marked;
@@ -280,6 +307,7 @@ void DmStage::process(Context& ctx, StageReport& report) {
   val["regions_dynamic"] = marked;
   val["regions_few_points"] = few;
   val["regions_few_points_dynamic"] = few_kept_dynamic;
+  val["regions_kept_moving"] = kept_moving;
   val["candidate_points"] = candidate_points;
   val["dynamic_points"] = dynamic_points;
   val["static_points"] = static_points;

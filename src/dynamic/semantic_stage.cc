@@ -63,6 +63,8 @@ void SemanticOptions::read(const cv::FileNode& node) {
   else
     throw InputError("option '" + detail::key_name(node, "policy") + "': unknown policy '" + p +
                      "' (drop or static_until_proven)");
+  detail::read_option(node, "drop_unchecked", drop_unchecked);
+  detail::read_option(node, "drop_unchecked_mono", drop_unchecked_mono);
 }
 
 SemanticStage::SemanticStage(const SemanticOptions& options) : o_(options) { build_lookup(); }
@@ -132,7 +134,11 @@ void SemanticStage::process(Context& ctx, StageReport& report) {
   // The blobs are cut once for this and the later stages' regions.
   const int regions = n > 0 ? ctx.regions.get(cur.candidates, cv::Mat(), false).count : 0;
   report.values["candidate_regions"] = regions;
-  if (o_.policy == SemanticOptions::Policy::kDrop && n > 0) {
+  const bool drop_unchecked = ctx.sensor == Sensor::kMono ? o_.drop_unchecked_mono : o_.drop_unchecked;
+  const bool unchecked = o_.policy == SemanticOptions::Policy::kStaticUntilProven && drop_unchecked &&
+                         !ctx.previous;
+  if (unchecked && n > 0) report.values["unchecked_dropped"] = 1;
+  if ((o_.policy == SemanticOptions::Policy::kDrop || unchecked) && n > 0) {
     if (ctx.dynamic.empty()) ctx.dynamic = cv::Mat::zeros(cur.grey.size(), CV_8UC1);
     cv::bitwise_or(ctx.dynamic, cur.candidates, ctx.dynamic);
     report.regions = regions;

@@ -235,6 +235,40 @@ TEST(DmStage, FewPointsPolicy) {
   EXPECT_EQ(d.run(keep).regions, 0);
 }
 
+// keep_moving_frames(_mono): a region proven moving stays dynamic while
+// later frames' points only fail to prove it (as the monocular epipolar test
+// does for motion along the epipolar lines), for a limited number of frames.
+TEST(DmStage, ARegionProvenMovingIsKeptForSomeFrames) {
+  std::vector<TexturedQuad> prev_scene = base_scene(), cur_scene = base_scene();
+  prev_scene.push_back(parked_car());
+  cur_scene.push_back(parked_car());
+  TexturedQuad p = person();
+  prev_scene.push_back(p);
+  p.T_wq.translation().x() += 0.06;
+  cur_scene.push_back(p);
+  for (Sensor s : {Sensor::kMono, Sensor::kRGBD}) {
+    Case moving = make_case(s, prev_scene, cur_scene);
+    // The same current image, but the person stands still since the frame before.
+    Case still = make_case(s, cur_scene, cur_scene);
+    DmOptions o;
+    o.keep_moving_frames_mono = 2;
+    DmStage stage(o);
+    ASSERT_EQ(moving.run(stage).regions, 1) << to_string(s);
+    for (long id = 2; id <= 4; ++id) {
+      auto prev = std::make_shared<FrameData>(*still.prev);
+      prev->id = id - 1;
+      still.prev = prev;
+      still.cur.id = id;
+      const StageReport r = still.run(stage);
+      const bool kept = s == Sensor::kMono && id <= 3;  // RGB-D: keep_moving_frames 0
+      EXPECT_EQ(r.values.at("regions_kept_moving"), kept ? 1 : 0) << to_string(s) << " frame " << id;
+      EXPECT_EQ(r.regions, kept ? 1 : 0) << to_string(s) << " frame " << id;
+      EXPECT_EQ(still.marked(kPerson) > 0.99, kept) << to_string(s) << " frame " << id;
+      EXPECT_EQ(still.marked(kCar), 0.0);
+    }
+  }
+}
+
 TEST(DmStage, DegenerateInputMarksNothingAndSaysWhy) {
   Case c = crossing_case(Sensor::kRGBD);
   DmStage stage;
@@ -372,18 +406,26 @@ TEST(CandidateRegions, MemoCutsEqualInputsOnce) {
 TEST(DmStage, OptionsReadFromYaml) {
   cv::FileStorage fs(
       "%YAML:1.0\ndm:\n  epipolar_threshold_px: 2\n  few_points_policy: static\n  split_by_label: 0\n"
-      "bad:\n  few_points_policy: sometimes\nbad_type:\n  min_region_points: 2.5\n",
+      "  keep_moving_frames: 3\n  keep_moving_overlap: 0.8\n"
+      "bad:\n  few_points_policy: sometimes\nbad_type:\n  min_region_points: 2.5\n"
+      "bad_keep:\n  keep_moving_frames_mono: -1\nbad_overlap:\n  keep_moving_overlap: 0\n",
       cv::FileStorage::READ | cv::FileStorage::MEMORY);
   DmOptions o;
   o.read(fs["dm"]);
   EXPECT_DOUBLE_EQ(o.epipolar_threshold_px, 2.0);
   EXPECT_EQ(o.few_points_policy, "static");
   EXPECT_FALSE(o.split_by_label);
+  EXPECT_EQ(o.keep_moving_frames, 3);
+  EXPECT_EQ(o.keep_moving_frames_mono, DmOptions().keep_moving_frames_mono);
+  EXPECT_DOUBLE_EQ(o.keep_moving_overlap, 0.8);
   EXPECT_DOUBLE_EQ(o.region_dynamic_fraction, DmOptions().region_dynamic_fraction);
   DmOptions b;
   EXPECT_THROW(b.read(fs["bad"]), InputError);
   DmOptions t;
   EXPECT_THROW(t.read(fs["bad_type"]), InputError);
+  DmOptions k;
+  EXPECT_THROW(k.read(fs["bad_keep"]), InputError);
+  EXPECT_THROW(k.read(fs["bad_overlap"]), InputError);
   DmStage s(o);
   EXPECT_EQ(s.name(), "dm");
   EXPECT_TRUE(s.needs_motion_cues());

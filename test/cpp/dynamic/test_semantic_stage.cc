@@ -82,6 +82,34 @@ TEST(SemanticStage, StaticUntilProvenOnlySetsCandidates) {
   EXPECT_EQ(r.values.at("candidate_regions"), 1);
 }
 
+// With no previous frame nothing can be proven to move: static_until_proven
+// leaves the candidates of such a frame static (DM-SLAM), or drops them with
+// drop_unchecked_mono (mono) / drop_unchecked (RGB-D, stereo).
+TEST(SemanticStage, UncheckedFrameDropsItsCandidatesWhenAsked) {
+  for (const std::string& yaml : {std::string("{margin: 0, policy: static_until_proven}"),
+                                  std::string("{margin: 0, policy: static_until_proven, drop_unchecked_mono: 1}"),
+                                  std::string("{margin: 0, policy: static_until_proven, drop_unchecked: 1}")}) {
+    const bool mono_drops = yaml.find("drop_unchecked_mono") != std::string::npos;
+    const bool others_drop = yaml.find("drop_unchecked:") != std::string::npos;
+    for (Sensor s : {Sensor::kMono, Sensor::kRGBD}) {
+      SemanticStage stage(options(yaml));
+      FrameData f = labelled_frame();
+      auto previous = std::make_shared<FrameData>(labelled_frame());
+      for (bool with_previous : {false, true}) {
+        Context ctx{s, nullptr, f, with_previous ? previous : nullptr, cv::Mat::zeros(f.grey.size(), CV_8UC1),
+                    nullptr, nullptr, std::nullopt, nullptr};
+        StageReport r;
+        stage.process(ctx, r);
+        const bool dropped = !with_previous && (s == Sensor::kMono ? mono_drops : others_drop);
+        EXPECT_EQ(cv::countNonZero(ctx.dynamic), dropped ? 40 * 60 : 0) << yaml << " " << to_string(s);
+        EXPECT_EQ(r.values.count("unchecked_dropped"), dropped ? 1u : 0u);
+        EXPECT_EQ(r.regions, dropped ? 1 : 0);
+        EXPECT_EQ(cv::countNonZero(f.candidates), 40 * 60);
+      }
+    }
+  }
+}
+
 TEST(SemanticStage, ExplicitIdsAndSixteenBitLabels) {
   SemanticStage stage(options("{classes: [9, 1000], margin: 0}"));
   FrameData f = labelled_frame();
