@@ -4,6 +4,9 @@
 // split by class, the few-points policy, and every degenerate input.
 #include <gtest/gtest.h>
 
+#include <utility>
+#include <vector>
+
 #include "dynaorb/dynamic/candidate_regions.h"
 #include "dynaorb/dynamic/dm_stage.h"
 #include "dynaorb/dynamic/motion_cues.h"
@@ -104,8 +107,9 @@ Case make_case(Sensor sensor, const std::vector<TexturedQuad>& prev_scene,
   return c;
 }
 
-// A person crossing (6 cm between frames, 2.2 m away) and a parked car.
-Case crossing_case(Sensor sensor, const cv::Mat& dist = cv::Mat()) {
+// A person crossing (6 cm between frames, 2.2 m away) and a parked car:
+// the previous and the current scene.
+std::pair<std::vector<TexturedQuad>, std::vector<TexturedQuad>> crossing_scenes() {
   std::vector<TexturedQuad> prev_scene = base_scene(), cur_scene = base_scene();
   prev_scene.push_back(parked_car());
   cur_scene.push_back(parked_car());
@@ -113,6 +117,11 @@ Case crossing_case(Sensor sensor, const cv::Mat& dist = cv::Mat()) {
   prev_scene.push_back(p);
   p.T_wq.translation().x() += 0.06;
   cur_scene.push_back(p);
+  return {prev_scene, cur_scene};
+}
+
+Case crossing_case(Sensor sensor, const cv::Mat& dist = cv::Mat()) {
+  const auto [prev_scene, cur_scene] = crossing_scenes();
   return make_case(sensor, prev_scene, cur_scene, dist);
 }
 
@@ -239,13 +248,7 @@ TEST(DmStage, FewPointsPolicy) {
 // later frames' points only fail to prove it (as the monocular epipolar test
 // does for motion along the epipolar lines), for a limited number of frames.
 TEST(DmStage, ARegionProvenMovingIsKeptForSomeFrames) {
-  std::vector<TexturedQuad> prev_scene = base_scene(), cur_scene = base_scene();
-  prev_scene.push_back(parked_car());
-  cur_scene.push_back(parked_car());
-  TexturedQuad p = person();
-  prev_scene.push_back(p);
-  p.T_wq.translation().x() += 0.06;
-  cur_scene.push_back(p);
+  const auto [prev_scene, cur_scene] = crossing_scenes();
   for (Sensor s : {Sensor::kMono, Sensor::kRGBD}) {
     Case moving = make_case(s, prev_scene, cur_scene);
     // The same current image, but the person stands still since the frame before.
