@@ -76,9 +76,10 @@ struct DmOptions {
   // for up to keep_moving_frames frames after the last frame whose points
   // proved it moving. The monocular test (eq. 10) is blind to motion along
   // the epipolar lines, so in a monocular sequence a vehicle travelling beside
-  // the camera, once caught, passes as static in most later frames: on
+  // the camera, once caught, passes as static in many later frames: on
   // `dynaorb synth --sensor mono --movers 3 --seed 0` the `full` preset missed
-  // it in 30 of 59 frames, in gaps of 1-8 frames; 10 catches it in all (the
+  // more than half of it in 21 of 59 frames, in gaps of 1-8 frames after
+  // frames that caught it; 10 catches it in all of them (the
   // `full` preset's value for mono, config/dynamic/full.yaml). 0: each frame
   // decides afresh, as in the paper.
   int keep_moving_frames = 0;       // RGB-D / stereo
