@@ -34,15 +34,12 @@ def summary(results: dict, source: str) -> str:
                       "own thread and not in these ms):", "", *report.pair_table(full), ""]
     else:
         lines += [f"ORB-SLAM3: {peer.get('status', 'not run')}.", ""]
-    lines += ["dynaorb, every case (ATE RMSE median, min-max over the runs):", "",
-              "| sequence | sensor | preset | ATE RMSE [m] | tracked | track call ms/frame | peak MB |",
-              "|---|---|---|---|---|---|---|"]
-    for r in rows:
-        if r["system"] != "dynaorb":
-            continue
-        lines.append(f"| {r['sequence']} | {r['sensor']} | {r['preset']} | {report._ate_cell(r)} | "
-                     f"{report._pct(r['tracked_fraction'])} | {report._f(r['track_call_ms_median'], '{:.1f}')} | "
-                     f"{report._f(r['peak_rss_mb'], '{:.0f}')} |")
+    lines += ["dynaorb, every case (ATE RMSE median, min-max over the runs):", ""]
+    lines += report.markdown_table(
+        ["sequence", "sensor", "preset", "ATE RMSE [m]", "tracked", "track call ms/frame", "peak MB"],
+        ([r["sequence"], r["sensor"], r["preset"], report._ate_cell(r), report._pct(r["tracked_fraction"]),
+          report._f(r["track_call_ms_median"], "{:.1f}"), report._f(r["peak_rss_mb"], "{:.0f}")]
+         for r in rows if r["system"] == "dynaorb"))
     if results.get("not_run"):
         lines += ["", "Not run: " + "; ".join(f"{n['what']} ({n['reason']})" for n in results["not_run"]) + "."]
     return "\n".join(lines)

@@ -107,6 +107,13 @@ def _pct(v):
     return _f(None if v is None else 100 * v, "{:.0f} %")
 
 
+def markdown_table(header: list[str], rows) -> list[str]:
+    """A Markdown table's lines: the header cells, the separator, one line per row of cells."""
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+    return lines
+
+
 def _label(r: dict) -> str:
     return "ORB-SLAM3" if r["system"] == "orbslam3" else f"dynaorb {r['preset']}"
 
@@ -119,59 +126,52 @@ def _ate_cell(r: dict) -> str:
 
 
 def case_table(rows: list[dict]) -> list[str]:
-    lines = ["| sequence | sensor | system | runs ok | ATE RMSE [m] median (min-max) | RPE trans [m/frame] | "
-             "RPE rot [deg/frame] | tracked | tracking thread ms/frame | track call ms/frame | fps | peak MB |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for r in rows:
-        lines.append(f"| {r['sequence']} | {r['sensor']} | {_label(r)} | {r['runs_ok']}/{r['runs']} | {_ate_cell(r)} | "
-                     f"{_f(r['rpe_trans_rmse'], '{:.4f}')} | {_f(r['rpe_rot_rmse'], '{:.3f}')} | "
-                     f"{_pct(r['tracked_fraction'])} | {_f(r['frame_ms_median'], '{:.1f}', '-')} | "
-                     f"{_f(r['track_call_ms_median'], '{:.1f}')} | {_f(r['fps'], '{:.1f}')} | "
-                     f"{_f(r['peak_rss_mb'], '{:.0f}')} |")
-    return lines
+    return markdown_table(
+        ["sequence", "sensor", "system", "runs ok", "ATE RMSE [m] median (min-max)", "RPE trans [m/frame]",
+         "RPE rot [deg/frame]", "tracked", "tracking thread ms/frame", "track call ms/frame", "fps", "peak MB"],
+        ([r["sequence"], r["sensor"], _label(r), f"{r['runs_ok']}/{r['runs']}", _ate_cell(r),
+          _f(r["rpe_trans_rmse"], "{:.4f}"), _f(r["rpe_rot_rmse"], "{:.3f}"), _pct(r["tracked_fraction"]),
+          _f(r["frame_ms_median"], "{:.1f}", "-"), _f(r["track_call_ms_median"], "{:.1f}"), _f(r["fps"], "{:.1f}"),
+          _f(r["peak_rss_mb"], "{:.0f}")] for r in rows))
 
 
 def pair_table(ps: list[dict]) -> list[str]:
-    lines = ["| sequence | sensor | ATE dynaorb [m] | ATE ORB-SLAM3 [m] | ATE ours/theirs | "
-             "ms/frame dynaorb | ms/frame ORB-SLAM3 | ms ours/theirs | tracked dynaorb | tracked ORB-SLAM3 |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
-    for p in ps:
-        o, t = p["ours"], p["theirs"]
-        lines.append(f"| {p['sequence']} | {p['sensor']} | {_f(o['ate_rmse'], '{:.4f}')} | {_f(t['ate_rmse'], '{:.4f}')} | "
-                     f"{_f(p['ate_ratio'], '{:.2f}')} | {_f(o['track_call_ms_median'], '{:.1f}')} | "
-                     f"{_f(t['track_call_ms_median'], '{:.1f}')} | {_f(p['ms_ratio'], '{:.2f}')} | "
-                     f"{_pct(o['tracked_fraction'])} | {_pct(t['tracked_fraction'])} |")
-    return lines
+    return markdown_table(
+        ["sequence", "sensor", "ATE dynaorb [m]", "ATE ORB-SLAM3 [m]", "ATE ours/theirs", "ms/frame dynaorb",
+         "ms/frame ORB-SLAM3", "ms ours/theirs", "tracked dynaorb", "tracked ORB-SLAM3"],
+        ([p["sequence"], p["sensor"], _f(p["ours"]["ate_rmse"], "{:.4f}"), _f(p["theirs"]["ate_rmse"], "{:.4f}"),
+          _f(p["ate_ratio"], "{:.2f}"), _f(p["ours"]["track_call_ms_median"], "{:.1f}"),
+          _f(p["theirs"]["track_call_ms_median"], "{:.1f}"), _f(p["ms_ratio"], "{:.2f}"),
+          _pct(p["ours"]["tracked_fraction"]), _pct(p["theirs"]["tracked_fraction"])] for p in ps))
+
+
+def _labels_cell(r: dict) -> str:
+    labels = r["labels"] if r["labels"] and r["labels"].startswith("network") else \
+        "label images" if r["labels"] else "none"
+    if r.get("network_ms_median") is not None:
+        labels += f", {r['network_ms_median']:.0f} ms/image on its own thread"
+    return labels
 
 
 def preset_table(ps: list[dict]) -> list[str]:
-    lines = ["| sequence | sensor | preset (stages) | labels | ATE [m] | ATE off [m] | ATE preset/off | "
-             "ms/frame | ms/frame off | ms preset/off | dynamic filter ms | dynamic keypoints (median) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for p in ps:
-        r, o = p["row"], p["off"]
-        stages = ", ".join(r["dynamic_stages"] or [])
-        labels = r["labels"] if r["labels"] and r["labels"].startswith("network") else \
-            "label images" if r["labels"] else "none"
-        if r.get("network_ms_median") is not None:
-            labels += f", {r['network_ms_median']:.0f} ms/image on its own thread"
-        lines.append(f"| {r['sequence']} | {r['sensor']} | {r['preset']} ({stages}) | {labels} | "
-                     f"{_f(r['ate_rmse'], '{:.4f}')} | {_f(o['ate_rmse'], '{:.4f}')} | {_f(p['ate_ratio'], '{:.2f}')} | "
-                     f"{_f(r['frame_ms_median'], '{:.1f}')} | {_f(o['frame_ms_median'], '{:.1f}')} | "
-                     f"{_f(p['ms_ratio'], '{:.2f}')} | {_f(r['dynamic_ms_median'], '{:.1f}')} | "
-                     f"{_f(r['dynamic_keypoints_median'], '{:.0f}')} |")
-    return lines
+    return markdown_table(
+        ["sequence", "sensor", "preset (stages)", "labels", "ATE [m]", "ATE off [m]", "ATE preset/off",
+         "ms/frame", "ms/frame off", "ms preset/off", "dynamic filter ms", "dynamic keypoints (median)"],
+        ([p["row"]["sequence"], p["row"]["sensor"],
+          f"{p['row']['preset']} ({', '.join(p['row']['dynamic_stages'] or [])})", _labels_cell(p["row"]),
+          _f(p["row"]["ate_rmse"], "{:.4f}"), _f(p["off"]["ate_rmse"], "{:.4f}"), _f(p["ate_ratio"], "{:.2f}"),
+          _f(p["row"]["frame_ms_median"], "{:.1f}"), _f(p["off"]["frame_ms_median"], "{:.1f}"),
+          _f(p["ms_ratio"], "{:.2f}"), _f(p["row"]["dynamic_ms_median"], "{:.1f}"),
+          _f(p["row"]["dynamic_keypoints_median"], "{:.0f}")] for p in ps))
 
 
 def stage_table(rows: list[dict]) -> list[str]:
     ours = [r for r in rows if r["system"] == "dynaorb"]
     extra = sorted({k for r in ours for k in r["stage_ms_median"] if k.startswith("dynamic.")})
     cols = list(STAGES) + extra + ["frame_total"]
-    lines = ["| sequence | sensor | preset | " + " | ".join(cols) + " |", "|---|---|---|" + "---|" * len(cols)]
-    for r in ours:
-        lines.append(f"| {r['sequence']} | {r['sensor']} | {r['preset']} | " +
-                     " | ".join(_f(r["stage_ms_median"].get(c), "{:.1f}", "-") for c in cols) + " |")
-    return lines
+    return markdown_table(["sequence", "sensor", "preset", *cols],
+                          ([r["sequence"], r["sensor"], r["preset"],
+                            *(_f(r["stage_ms_median"].get(c), "{:.1f}", "-") for c in cols)] for r in ours))
 
 
 # --- plots ---------------------------------------------------------------------------------------------

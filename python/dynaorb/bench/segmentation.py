@@ -18,6 +18,7 @@ import statistics
 
 import cv2
 
+from dynaorb.bench.report import markdown_table
 from dynaorb.segmentation import Segmenter
 
 BENCH_FRAME = "tum/rgbd_dataset_freiburg3_walking_xyz_fragment/rgb/1341846313.592026.png"
@@ -60,18 +61,15 @@ def slam_speed(kind: str, path: str, model: pathlib.Path, out: pathlib.Path) -> 
 
 
 def markdown(latency: list[dict], slam: list[dict], sequence: str, model: str) -> str:
-    lines = ["# Segmentation benchmark", "", "## Network latency (640x480 TUM frame, median)", "",
-             "| model | back end | threads | network ms | segment() ms |", "|---|---|---|---|---|"]
-    for r in latency:
-        lines.append(f"| {r['model']} | {r['backend']} | {r['threads']} | {r['network_ms_median']:.1f} | "
-                     f"{r['total_ms_median']:.1f} |")
-    lines += ["", f"## SLAM with segmentation ({sequence}, model {model})", "",
-              "| run | fps | fps / no segmentation | tracking ms/frame (median) | tracked | mask age (median) |",
-              "|---|---|---|---|---|---|"]
-    for r in slam:
-        age = "" if r["mask_age_median"] is None else f"{r['mask_age_median']:.0f}"
-        lines.append(f"| {r['run']} | {r['fps']:.1f} | {r['fps_ratio_to_no_segmentation']:.2f} | "
-                     f"{r['frame_ms_median']:.1f} | {r['tracked']} | {age} |")
+    lines = ["# Segmentation benchmark", "", "## Network latency (640x480 TUM frame, median)", ""]
+    lines += markdown_table(["model", "back end", "threads", "network ms", "segment() ms"],
+                            ([r["model"], r["backend"], r["threads"], f"{r['network_ms_median']:.1f}",
+                              f"{r['total_ms_median']:.1f}"] for r in latency))
+    lines += ["", f"## SLAM with segmentation ({sequence}, model {model})", ""]
+    lines += markdown_table(
+        ["run", "fps", "fps / no segmentation", "tracking ms/frame (median)", "tracked", "mask age (median)"],
+        ([r["run"], f"{r['fps']:.1f}", f"{r['fps_ratio_to_no_segmentation']:.2f}", f"{r['frame_ms_median']:.1f}",
+          r["tracked"], "" if r["mask_age_median"] is None else f"{r['mask_age_median']:.0f}"] for r in slam))
     return "\n".join(lines) + "\n"
 
 
