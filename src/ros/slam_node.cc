@@ -335,6 +335,11 @@ bool SlamNode::dense_view(const FrameInput& f, const cv::Mat& exclusion, bool fi
       for (int k = 0; k < 3; ++k) view.R_cam_depth(r, k) = static_cast<float>(R.at<double>(k, r));
   };
   cv::Mat unchecked;  // movable-class regions the filter had no previous frame to check (tracked pixels)
+  // They join the exclusion of the view whose image (of this size) is in the tracked pixels.
+  auto exclude_unchecked = [&view, &unchecked](const cv::Size& size) {
+    if (!unchecked.empty() && unchecked.size() == size)
+      view.exclude = view.exclude.empty() ? unchecked : (view.exclude | unchecked);
+  };
   if (filter) {
     DenseFrame d;
     {
@@ -366,7 +371,7 @@ bool SlamNode::dense_view(const FrameInput& f, const cv::Mat& exclusion, bool fi
   cv::Mat K = (cv::Mat_<double>(3, 3) << c.fx, 0, c.cx, 0, c.fy, c.cy, 0, 0, 1);
   view.exclude = exclusion.empty() || !filtered ? cv::Mat() : exclusion;
   if (sensor == Sensor::kRGBD) {
-    if (!unchecked.empty()) view.exclude = view.exclude.empty() ? unchecked : (view.exclude | unchecked);
+    exclude_unchecked(f.image.size());
     view.depth_m = f.depth_m;
     view.colour = f.image;
     view.K = K;
@@ -384,8 +389,7 @@ bool SlamNode::dense_view(const FrameInput& f, const cv::Mat& exclusion, bool fi
     view.K = as_mat3(q.P_l.colRange(0, 3));
     rectified_to_input();
   }
-  if (!unchecked.empty() && unchecked.size() == left.size())
-    view.exclude = view.exclude.empty() ? unchecked : (view.exclude | unchecked);
+  exclude_unchecked(left.size());
   view.depth_m = dynamic::stereo_depth(left, right, *c.bf, cfg_.node.sgbm);
   view.colour = left;
   return !view.depth_m.empty();
