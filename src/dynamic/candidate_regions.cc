@@ -1,7 +1,10 @@
 // Candidate mask -> object regions: connected components, split by class.
 #include "dynaorb/dynamic/candidate_regions.h"
 
+#include <array>
 #include <bitset>
+#include <climits>
+#include <cstdint>
 #include <cstring>
 #include <limits>
 #include <opencv2/imgproc.hpp>
@@ -30,7 +33,90 @@ void add_components(const cv::Mat& mask, const cv::Point& origin, unsigned char 
   out.count += n - 1;
 }
 
+// nearest_class by the definition: one distance transform per class, a
+// running minimum.
+cv::Mat nearest_class_per_class(const cv::Mat& lab, const std::vector<unsigned char>& present) {
+  cv::Mat best_dist(lab.size(), CV_32FC1, cv::Scalar(std::numeric_limits<float>::max()));
+  cv::Mat best_class(lab.size(), CV_8UC1, cv::Scalar(0));
+  for (unsigned char c : present) {
+    cv::Mat dist;
+    cv::distanceTransform(lab != c, dist, cv::DIST_L2, cv::DIST_MASK_5);
+    const cv::Mat closer = dist < best_dist;
+    dist.copyTo(best_dist, closer);
+    best_class.setTo(c, closer);
+  }
+  return best_class;
+}
+
 }  // namespace
+
+cv::Mat nearest_class(const cv::Mat& lab, const std::vector<unsigned char>& present, const cv::Mat& where) {
+  CV_Assert(lab.type() == CV_8UC1 && where.type() == CV_8UC1 && where.size() == lab.size());
+  // OpenCV's 5x5 chamfer (distanceTransform with DIST_L2 / DIST_MASK_5):
+  // weights 1, 1.4 and 2.1969 in 16.16 fixed point, a forward and a backward
+  // raster pass. Here each pixel carries (distance, class) as one integer,
+  // distance << 8 | class: the minimum of such keys over the same passes is
+  // the nearest class with ties to the lower id, because adding a weight
+  // keeps the order and the minimum distributes over the classes' sources.
+  constexpr int kShift = 16;
+  const int64_t hv = static_cast<int64_t>(cvRound(1.0f * (1 << kShift))) << 8;
+  const int64_t diag = static_cast<int64_t>(cvRound(1.4f * (1 << kShift))) << 8;
+  const int64_t knight = static_cast<int64_t>(cvRound(2.1969f * (1 << kShift))) << 8;
+  const int64_t far = static_cast<int64_t>(INT_MAX >> 2) << 8;  // no source yet
+  std::array<bool, 256> source{};
+  for (unsigned char c : present) source[c] = true;
+
+  const int rows = lab.rows, cols = lab.cols, border = 2, step = cols + 2 * border;
+  std::vector<int64_t> key(static_cast<size_t>(rows + 2 * border) * step, far);
+  auto at = [&](int y, int x) -> int64_t& { return key[static_cast<size_t>(y + border) * step + x + border]; };
+  for (int y = 0; y < rows; ++y) {
+    const unsigned char* l = lab.ptr<unsigned char>(y);
+    int64_t* k = &at(y, 0);
+    for (int x = 0; x < cols; ++x) {
+      if (source[l[x]]) {
+        k[x] = l[x];
+        continue;
+      }
+      int64_t m = k[x - 2 * step - 1] + knight;
+      m = std::min(m, k[x - 2 * step + 1] + knight);
+      m = std::min(m, k[x - step - 2] + knight);
+      m = std::min(m, k[x - step - 1] + diag);
+      m = std::min(m, k[x - step] + hv);
+      m = std::min(m, k[x - step + 1] + diag);
+      m = std::min(m, k[x - step + 2] + knight);
+      m = std::min(m, k[x - 1] + hv);
+      k[x] = m;
+    }
+  }
+  // The per-class transforms compare floats: a distance of 2^24 (256 px) or
+  // more is rounded there, and ties could then differ. Such a pixel of
+  // `where` hands the box to the per-class transforms.
+  const int64_t exact_below = static_cast<int64_t>(1) << (24 + 8);
+  cv::Mat best(lab.size(), CV_8UC1);
+  for (int y = rows - 1; y >= 0; --y) {
+    const unsigned char* l = lab.ptr<unsigned char>(y);
+    const unsigned char* w = where.ptr<unsigned char>(y);
+    unsigned char* b = best.ptr<unsigned char>(y);
+    int64_t* k = &at(y, 0);
+    for (int x = cols - 1; x >= 0; --x) {
+      if (!source[l[x]]) {
+        int64_t m = k[x];
+        m = std::min(m, k[x + 2 * step + 1] + knight);
+        m = std::min(m, k[x + 2 * step - 1] + knight);
+        m = std::min(m, k[x + step + 2] + knight);
+        m = std::min(m, k[x + step + 1] + diag);
+        m = std::min(m, k[x + step] + hv);
+        m = std::min(m, k[x + step - 1] + diag);
+        m = std::min(m, k[x + step - 2] + knight);
+        m = std::min(m, k[x + 1] + hv);
+        k[x] = m;
+        if (w[x] && m >= exact_below) return nearest_class_per_class(lab, present);
+      }
+      b[x] = static_cast<unsigned char>(k[x] & 0xff);
+    }
+  }
+  return best;
+}
 
 CandidateBlobs candidate_blobs(const cv::Mat& candidates) {
   CandidateBlobs b;
@@ -93,18 +179,8 @@ CandidateRegions candidate_regions(const CandidateBlobs& blobs, const cv::Mat& l
     }
     // Classes that touch: every pixel of the blob goes to the class of its
     // nearest labelled pixel (the margin carries no label of its own), ties
-    // to the lower id; one distance transform per class over the blob's box
-    // (over the whole image they cost ~2 ms each at 640x480).
-    const cv::Mat lab = labels(box);
-    cv::Mat best_dist(box.size(), CV_32FC1, cv::Scalar(std::numeric_limits<float>::max()));
-    cv::Mat best_class(box.size(), CV_8UC1, cv::Scalar(0));
-    for (unsigned char c : present) {
-      cv::Mat dist;
-      cv::distanceTransform(lab != c, dist, cv::DIST_L2, cv::DIST_MASK_5);
-      const cv::Mat closer = dist < best_dist;
-      dist.copyTo(best_dist, closer);
-      best_class.setTo(c, closer);
-    }
+    // to the lower id, over the blob's box.
+    const cv::Mat best_class = nearest_class(labels(box), present, blob);
     for (unsigned char c : present) add_components(blob & (best_class == c), box.tl(), c, out);
   }
   return out;

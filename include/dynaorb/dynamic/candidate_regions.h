@@ -29,6 +29,15 @@ struct CandidateRegions {
 // Bad input (empty, wrong type) gives no regions.
 CandidateRegions candidate_regions(const cv::Mat& candidates, const cv::Mat& labels, bool split_by_label);
 
+// The splitting rule of candidate_regions: for each pixel, the class of
+// `present` (ascending ids) whose pixels in `lab` (CV_8UC1 class ids) are
+// nearest by OpenCV's 5x5 chamfer distance (distanceTransform, DIST_L2,
+// DIST_MASK_5), ties to the lower id: the same answer as one such distance
+// transform per class and a running minimum, in one pair of passes. Pixels
+// outside `where` (CV_8UC1, lab's size) are answered too, exactly only
+// where their nearest class is closer than 256 px.
+cv::Mat nearest_class(const cv::Mat& lab, const std::vector<unsigned char>& present, const cv::Mat& where);
+
 // The first step of candidate_regions: the mask's 8-connected components
 // (connectedComponentsWithStats: comp, stats, count without the background),
 // which do not depend on the labels. Bad input gives count 0, comp empty.

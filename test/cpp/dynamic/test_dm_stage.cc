@@ -4,6 +4,8 @@
 // split by class, the few-points policy, and every degenerate input.
 #include <gtest/gtest.h>
 
+#include <limits>
+#include <random>
 #include <utility>
 #include <vector>
 
@@ -378,6 +380,49 @@ TEST(CandidateRegions, TouchingClassesAreSeparateObjects) {
   EXPECT_EQ(no_labels.count, 2);
   EXPECT_EQ(candidate_regions(cv::Mat(), labels, true).count, 0);
   EXPECT_EQ(candidate_regions(cv::Mat(10, 10, CV_32FC1, cv::Scalar(1)), cv::Mat(), true).count, 0);
+}
+
+// nearest_class is the per-class rule (one 5x5 chamfer distance transform per
+// class, a running minimum, ties to the lower id) pixel for pixel, on random
+// scenes of blobs, stripes and single pixels of up to four classes, with
+// ties on purpose (classes placed symmetrically) and a class far away.
+TEST(CandidateRegions, NearestClassIsTheClassOfTheNearestTransform) {
+  std::mt19937 rng(7);
+  const std::vector<unsigned char> classes = {2, 7, 15, 19};
+  for (int scene = 0; scene < 40; ++scene) {
+    const int w = 40 + static_cast<int>(rng() % 300), h = 40 + static_cast<int>(rng() % 300);
+    cv::Mat lab(h, w, CV_8UC1, cv::Scalar(0));
+    const int n_classes = 2 + static_cast<int>(rng() % 3);
+    std::vector<unsigned char> present(classes.begin(), classes.begin() + n_classes);
+    for (int k = 0; k < 12; ++k) {
+      const unsigned char c = present[rng() % present.size()];
+      const int x = static_cast<int>(rng() % w), y = static_cast<int>(rng() % h);
+      switch (rng() % 3) {
+        case 0: cv::circle(lab, {x, y}, 1 + static_cast<int>(rng() % 20), cv::Scalar(c), cv::FILLED); break;
+        case 1: cv::line(lab, {x, y}, {static_cast<int>(rng() % w), static_cast<int>(rng() % h)}, cv::Scalar(c)); break;
+        default: lab.at<unsigned char>(y, x) = c;
+      }
+    }
+    // Mirror-image pixels of two classes: equal distances along the middle.
+    lab.at<unsigned char>(h / 2, w / 4) = present[1];
+    lab.at<unsigned char>(h / 2, w - 1 - w / 4) = present[0];
+    lab.at<unsigned char>(0, 0) = 3;  // a class not asked about: no source
+    std::vector<unsigned char> asked;
+    for (unsigned char c : present)
+      if (cv::countNonZero(lab == c) > 0) asked.push_back(c);
+    cv::Mat best_dist(lab.size(), CV_32FC1, cv::Scalar(std::numeric_limits<float>::max()));
+    cv::Mat expected(lab.size(), CV_8UC1, cv::Scalar(0));
+    for (unsigned char c : asked) {
+      cv::Mat dist;
+      cv::distanceTransform(lab != c, dist, cv::DIST_L2, cv::DIST_MASK_5);
+      const cv::Mat closer = dist < best_dist;
+      dist.copyTo(best_dist, closer);
+      expected.setTo(c, closer);
+    }
+    const cv::Mat everywhere(lab.size(), CV_8UC1, cv::Scalar(255));
+    const cv::Mat got = nearest_class(lab, asked, everywhere);
+    ASSERT_EQ(cv::countNonZero(got != expected), 0) << "scene " << scene << " (" << w << "x" << h << ")";
+  }
 }
 
 // The memo gives what candidate_regions gives, once per distinct input:
