@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <future>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -29,6 +30,7 @@ void MotionCueOptions::read(const cv::FileNode& node) {
   read_option(node, "lk_max_iterations", lk_max_iterations);
   read_option(node, "lk_epsilon", lk_epsilon);
   read_option(node, "forward_backward_max", forward_backward_max);
+  read_option(node, "forward_backward_max_rgbd", forward_backward_max_rgbd);
   read_option(node, "border", border);
   read_option(node, "depth_edge_radius", depth_edge_radius);
   read_option(node, "depth_edge_max_ratio", depth_edge_max_ratio);
@@ -119,7 +121,7 @@ std::vector<cv::Point2f> without_duplicates(const std::vector<cv::Point2f>& corn
 
 struct Flow {
   std::vector<cv::Point2f> to;
-  std::vector<unsigned char> ok;  // tracked there and back within forward_backward_max
+  std::vector<unsigned char> ok;  // found (and tracked back within fb_max, when checked)
 };
 
 int lk_window(const MotionCueOptions& o) { return std::max(o.lk_window, 3); }
@@ -135,9 +137,13 @@ std::vector<cv::Mat> lk_pyramid(const cv::Mat& image, const MotionCueOptions& o)
 }
 
 // LK from `a` into `b` and back (pyramids of lk_pyramid); a point is kept
-// only when the backward track returns to where it started.
+// only when the backward track returns to within fb_max px of where it
+// started (fb_max <= 0: not tracked back, kept when found). keep (optional):
+// the caller's own test of where point i lands; a point that fails it is
+// not tracked back and not kept.
 Flow track_forward_backward(const std::vector<cv::Mat>& a, const std::vector<cv::Mat>& b,
-                            const std::vector<cv::Point2f>& from, const MotionCueOptions& o) {
+                            const std::vector<cv::Point2f>& from, const MotionCueOptions& o, double fb_max,
+                            const std::function<bool(size_t, const cv::Point2f&)>& keep = {}) {
   Flow f;
   f.ok.assign(from.size(), 0);
   if (from.empty()) return f;
@@ -145,16 +151,28 @@ Flow track_forward_backward(const std::vector<cv::Mat>& a, const std::vector<cv:
   const int levels = lk_levels(o);
   const cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, std::max(o.lk_max_iterations, 1),
                               std::max(o.lk_epsilon, 0.0));
-  std::vector<cv::Point2f> back;
   std::vector<unsigned char> st_f, st_b;
-  std::vector<float> err;
-  cv::calcOpticalFlowPyrLK(a, b, from, f.to, st_f, err, cv::Size(win, win), levels, crit);
-  cv::calcOpticalFlowPyrLK(b, a, f.to, back, st_b, err, cv::Size(win, win), levels, crit);
-  const double fb2 = o.forward_backward_max * o.forward_backward_max;
-  for (size_t i = 0; i < from.size(); ++i) {
-    if (!st_f[i] || !st_b[i] || !finite(f.to[i]) || !finite(back[i])) continue;
-    const cv::Point2f d = back[i] - from[i];
-    f.ok[i] = d.x * d.x + d.y * d.y <= fb2;
+  cv::calcOpticalFlowPyrLK(a, b, from, f.to, st_f, cv::noArray(), cv::Size(win, win), levels, crit);
+  // Back only from the points the forward pass found (LK tracks each point
+  // on its own: the same answer as tracking all of them back).
+  std::vector<size_t> found;
+  std::vector<cv::Point2f> there, back;
+  for (size_t i = 0; i < from.size(); ++i)
+    if (st_f[i] && finite(f.to[i]) && (!keep || keep(i, f.to[i]))) {
+      found.push_back(i);
+      there.push_back(f.to[i]);
+    }
+  if (found.empty()) return f;
+  if (!(fb_max > 0)) {  // no backward check (DS-SLAM's code has none)
+    for (size_t i : found) f.ok[i] = 1;
+    return f;
+  }
+  cv::calcOpticalFlowPyrLK(b, a, there, back, st_b, cv::noArray(), cv::Size(win, win), levels, crit);
+  const double fb2 = fb_max * fb_max;
+  for (size_t k = 0; k < found.size(); ++k) {
+    if (!st_b[k] || !finite(back[k])) continue;
+    const cv::Point2f d = back[k] - from[found[k]];
+    f.ok[found[k]] = d.x * d.x + d.y * d.y <= fb2;
   }
   return f;
 }
@@ -195,7 +213,10 @@ std::vector<float> stereo_depths(const std::vector<cv::Mat>& left_pyramid, const
                                  const std::vector<cv::Point2f>& points, double bf, const MotionCueOptions& o) {
   std::vector<float> depth(points.size(), 0.f);
   // Rectified pair: the match lies on the same row, left of the corner.
-  const Flow stereo = track_forward_backward(left_pyramid, right_pyramid, points, o);
+  const auto on_row = [&](size_t i, const cv::Point2f& r) {
+    return std::abs(r.y - points[i].y) <= 1.0 && points[i].x - r.x > 0;
+  };
+  const Flow stereo = track_forward_backward(left_pyramid, right_pyramid, points, o, o.forward_backward_max, on_row);
   for (size_t i = 0; i < points.size(); ++i) {
     if (!stereo.ok[i]) continue;
     const cv::Point2f& r = stereo.to[i];
@@ -275,7 +296,10 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
     }
 
     t0 = Clock::now();
-    const Flow flow = track_forward_backward(prev_pyramid, cur_pyramid, corners, o);
+    const double fb_max = sensor == Sensor::kRGBD && o.forward_backward_max_rgbd >= 0 ? o.forward_backward_max_rgbd
+                                                                                       : o.forward_backward_max;
+    const Flow flow = track_forward_backward(prev_pyramid, cur_pyramid, corners, o, fb_max,
+                                             [&](size_t, const cv::Point2f& p) { return away_from_edge(p, size, border); });
     std::vector<cv::Point2f> kept_prev, kept_cur;
     std::vector<size_t> kept_corner;
     for (size_t i = 0; i < corners.size(); ++i) {

@@ -43,7 +43,10 @@ struct MotionCueOptions {
   double lk_epsilon = 0.01;  // px
   // Ours: a track is kept only when tracking the current point back lands
   // within this many pixels of where it started (rejects occlusions and drift).
+  // <= 0: no backward tracking (DS-SLAM's code has none), half the LK cost.
+  // `forward_backward_max_rgbd` for RGB-D frames when >= 0 (else the first).
   double forward_backward_max = 1.0;  // px
+  double forward_backward_max_rgbd = -1;
   // STDyn-SLAM Sec. III-A: "the Harris points pair is discarded if at least one
   // of the points is on the edge corner or close to it" (no value in the paper;
   // 10 px is ours).
@@ -120,7 +123,7 @@ void detect_corners_ahead(const FrameData& frame, const map::Calibration& calib,
                           const MotionCueOptions& o, MotionCueCache& cache);
 
 // Harris corners on prev.grey, followed by pyramidal LK into cur.grey with a
-// forward-backward check; pairs with either end within `border` of the image
+// forward-backward check (forward_backward_max[_rgbd]); pairs with either end within `border` of the image
 // edge are rejected. prev_depth comes from prev.depth (CV_32FC1 metres) when
 // set; else, for stereo, from LK of the corner along the rectified row into
 // prev.right (|dy| <= 1 px, disparity > 0, depth = calib.bf / disparity);

@@ -182,6 +182,33 @@ bool same_points(const std::vector<TrackedPoint>& a, const std::vector<TrackedPo
   return true;
 }
 
+// Without the backward check (forward_backward_max 0) every forward track
+// that stays inside the border is kept, at the same place: the checked
+// tracks are a subset. forward_backward_max_rgbd applies to RGB-D alone.
+TEST(MotionCues, BackwardCheckOnlyRemovesTracks) {
+  for (Sensor sensor : {Sensor::kRGBD, Sensor::kStereo}) {
+    auto calib = make_calibration(sensor);
+    Pair p = render_pair(*calib, sensor);
+    const MotionCueOptions checked;
+    MotionCueOptions unchecked;
+    unchecked.forward_backward_max = 0;
+    const auto a = track_points(p.prev, p.cur, *calib, sensor, checked);
+    const auto b = track_points(p.prev, p.cur, *calib, sensor, unchecked);
+    ASSERT_GT(a.size(), 300u);
+    EXPECT_GT(b.size(), a.size());
+    size_t k = 0;
+    for (const auto& t : a) {
+      while (k < b.size() && b[k].prev != t.prev) ++k;
+      ASSERT_LT(k, b.size()) << "a checked track missing without the check";
+      EXPECT_EQ(b[k].cur, t.cur);
+    }
+    MotionCueOptions rgbd_only;
+    rgbd_only.forward_backward_max_rgbd = 0;
+    const auto c = track_points(p.prev, p.cur, *calib, sensor, rgbd_only);
+    EXPECT_EQ(c.size(), sensor == Sensor::kRGBD ? b.size() : a.size());
+  }
+}
+
 // The cache only saves work: the previous image's pyramid kept from the last
 // call, its corners (and for stereo their depths) found ahead on another
 // thread; the points are the
@@ -378,6 +405,7 @@ TEST(MotionCues, DegenerateInputGivesNothingAndNeverThrows) {
 TEST(MotionCues, OptionsReadFromYaml) {
   cv::FileStorage fs(
       "%YAML:1.0\nmotion:\n  max_corners: 500\n  use_harris: 0\n  border: 5\n  forward_backward_max: 0.5\n"
+      "  forward_backward_max_rgbd: 0\n"
       "bad:\n  max_corners: many\n",
       cv::FileStorage::READ | cv::FileStorage::MEMORY);
   MotionCueOptions o;
@@ -386,6 +414,7 @@ TEST(MotionCues, OptionsReadFromYaml) {
   EXPECT_FALSE(o.use_harris);
   EXPECT_EQ(o.border, 5);
   EXPECT_DOUBLE_EQ(o.forward_backward_max, 0.5);
+  EXPECT_DOUBLE_EQ(o.forward_backward_max_rgbd, 0);
   EXPECT_DOUBLE_EQ(o.quality_level, 0.01);  // missing: default kept
   EXPECT_EQ(o.min_ego_points, 12);
   MotionCueOptions b;
