@@ -298,8 +298,8 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
     t0 = Clock::now();
     const double fb_max = sensor == Sensor::kRGBD && o.forward_backward_max_rgbd >= 0 ? o.forward_backward_max_rgbd
                                                                                        : o.forward_backward_max;
-    const Flow flow = track_forward_backward(prev_pyramid, cur_pyramid, corners, o, fb_max,
-                                             [&](size_t, const cv::Point2f& p) { return away_from_edge(p, size, border); });
+    const auto inside = [&](size_t, const cv::Point2f& p) { return away_from_edge(p, size, border); };
+    const Flow flow = track_forward_backward(prev_pyramid, cur_pyramid, corners, o, fb_max, inside);
     std::vector<cv::Point2f> kept_prev, kept_cur;
     std::vector<size_t> kept_corner;
     for (size_t i = 0; i < corners.size(); ++i) {
