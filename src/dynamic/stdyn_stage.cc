@@ -112,7 +112,41 @@ int object_at(const cv::Mat& ids, const cv::Point2f& p, int radius) {
   return best;
 }
 
+// The image size: the current image, else the dynamic mask, else the calibration.
+cv::Size frame_size(const Context& ctx) {
+  if (!ctx.current.grey.empty()) return ctx.current.grey.size();
+  if (!ctx.dynamic.empty()) return ctx.dynamic.size();
+  if (ctx.calib && ctx.calib->width > 0 && ctx.calib->height > 0)
+    return cv::Size(ctx.calib->width, ctx.calib->height);
+  return cv::Size();
+}
+
 }  // namespace
+
+bool StdynStage::has_objects(const Context& ctx, const cv::Size& size) const {
+  // The objects process() decides on: the candidate regions, else the
+  // movable classes' pixels in the labels.
+  const cv::Mat& cand = ctx.current.candidates;
+  if (is_mask(cand, size)) return cv::countNonZero(cand) > 0;
+  const cv::Mat& labels = ctx.current.labels;
+  if (is_mask(labels, size)) {
+    bool movable[256] = {};
+    for (int id : o_.movable_labels)
+      if (id > 0 && id < 256) movable[id] = true;
+    for (int v = 0; v < labels.rows; ++v) {
+      const unsigned char* row = labels.ptr<unsigned char>(v);
+      for (int u = 0; u < labels.cols; ++u)
+        if (movable[row[u]]) return true;
+    }
+    return false;
+  }
+  return o_.mark_points_without_labels && o_.no_labels_point_radius_px > 0;
+}
+
+bool StdynStage::needs_motion_cues_for(const Context& ctx) const {
+  const cv::Size size = frame_size(ctx);
+  return size.area() > 0 && has_objects(ctx, size);
+}
 
 void StdynStage::process(Context& ctx, StageReport& report) {
   auto& val = report.values;
@@ -121,19 +155,22 @@ void StdynStage::process(Context& ctx, StageReport& report) {
     val["skipped_no_previous"] = 1;
     return;
   }
-  if (!ctx.tracked) {
-    val["skipped_no_motion_cues"] = 1;
-    return;
-  }
-
-  // The image size: the current image, else the dynamic mask, else the calibration.
-  cv::Size size;
-  if (!ctx.current.grey.empty()) size = ctx.current.grey.size();
-  else if (!ctx.dynamic.empty()) size = ctx.dynamic.size();
-  else if (ctx.calib && ctx.calib->width > 0 && ctx.calib->height > 0)
-    size = cv::Size(ctx.calib->width, ctx.calib->height);
+  const cv::Size size = frame_size(ctx);
   if (size.area() <= 0 || (!ctx.dynamic.empty() && !is_mask(ctx.dynamic, size))) {
     val["skipped_bad_input"] = 1;
+    return;
+  }
+  if (!has_objects(ctx, size)) {
+    // Nothing the check could mark: no movable object in the labels (or no
+    // labels, without mark_points_without_labels). The filter computed no
+    // motion cues for it.
+    val[is_mask(ctx.current.candidates, size) || is_mask(ctx.current.labels, size) ? "no_objects"
+                                                                                  : "skipped_no_labels"] = 1;
+    val["moving_objects"] = 0;
+    return;
+  }
+  if (!ctx.tracked) {
+    val["skipped_no_motion_cues"] = 1;
     return;
   }
   if (ctx.dynamic.empty()) ctx.dynamic = cv::Mat(size, CV_8UC1, cv::Scalar(0));

@@ -98,6 +98,11 @@ class StdynStage : public Stage {
   std::string name() const override { return "stdyn"; }
   bool supports(Sensor) const override { return true; }
   bool needs_motion_cues() const override { return true; }
+  // Not on a frame with nothing to decide on: labels (or candidate regions)
+  // without a movable object, or no labels at all (unless
+  // mark_points_without_labels); process() then reports no_objects or
+  // skipped_no_labels and marks nothing, as it would after the check.
+  bool needs_motion_cues_for(const Context& ctx) const override;
   // report: dynamic_points / static_points (current pixels of the judged
   // pairs), regions (moving objects marked); values: threshold_px, tracked,
   // used, rejected_edge (near the edge or not finite), rejected_patch,
@@ -111,6 +116,8 @@ class StdynStage : public Stage {
   const StdynOptions& options() const { return o_; }
 
  private:
+  bool has_objects(const Context& ctx, const cv::Size& size) const;
+
   StdynOptions o_;
 };
 

@@ -363,7 +363,8 @@ TEST(StdynStage, AllPointsInOneObject) {
 }
 
 // No labels (no network): objects cannot be decided; by default nothing is
-// marked, on request a disc around each dynamic point.
+// marked (and no motion cues are asked for), on request a disc around each
+// dynamic point.
 TEST(StdynStage, WithoutLabelsSkipsUnlessAskedToMarkPoints) {
   Pair p = make_frames(street(cv::Vec3d(0, 0.08, 0)));
   p.cur->labels.release();
@@ -371,7 +372,12 @@ TEST(StdynStage, WithoutLabelsSkipsUnlessAskedToMarkPoints) {
   const Outcome r = run_stage(p);
   EXPECT_EQ(value(r.report, "skipped_no_labels"), 1);
   EXPECT_EQ(cv::countNonZero(r.dynamic), 0);
-  EXPECT_GT(r.report.dynamic_points.size(), 10u);  // the points are still judged
+  EXPECT_TRUE(r.report.dynamic_points.empty());  // nothing judged: nothing it could mark
+  Context ctx = context(Sensor::kMono, p.calib, *p.cur, p.prev);
+  EXPECT_FALSE(StdynStage().needs_motion_cues_for(ctx));
+  StdynOptions marking;
+  marking.mark_points_without_labels = true;
+  EXPECT_TRUE(StdynStage(marking).needs_motion_cues_for(ctx));
 
   StdynOptions o;
   o.mark_points_without_labels = true;
@@ -383,6 +389,25 @@ TEST(StdynStage, WithoutLabelsSkipsUnlessAskedToMarkPoints) {
     EXPECT_EQ(r2.dynamic.at<unsigned char>(cvRound(q.y), cvRound(q.x)), 255);
   EXPECT_LE(cv::countNonZero(r2.dynamic),
             static_cast<int>(r2.report.dynamic_points.size() * CV_PI * 11 * 11));
+}
+
+// Labels and candidates without a movable object (a street without people
+// or vehicles): nothing to decide on, no motion cues asked for.
+TEST(StdynStage, NoMovableObjectNeedsNoMotionCues) {
+  Pair p = make_frames(street(cv::Vec3d(0, 0.08, 0)));
+  Context with = context(Sensor::kMono, p.calib, *p.cur, p.prev);
+  EXPECT_TRUE(StdynStage().needs_motion_cues_for(with));
+  p.cur->labels.setTo(0);
+  p.cur->candidates.setTo(0);
+  Context without = context(Sensor::kMono, p.calib, *p.cur, p.prev);
+  EXPECT_FALSE(StdynStage().needs_motion_cues_for(without));
+  const Outcome r = run_stage(p);
+  EXPECT_EQ(value(r.report, "no_objects"), 1);
+  EXPECT_EQ(cv::countNonZero(r.dynamic), 0);
+  p.cur->candidates.release();  // the labels alone decide then
+  EXPECT_FALSE(StdynStage().needs_motion_cues_for(without));
+  p.cur->labels.at<unsigned char>(100, 100) = kPerson;  // one person pixel
+  EXPECT_TRUE(StdynStage().needs_motion_cues_for(without));
 }
 
 // Labels but no candidates (no semantic stage before this one): the objects
