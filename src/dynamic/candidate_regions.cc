@@ -33,9 +33,9 @@ void add_components(const cv::Mat& mask, const cv::Point& origin, unsigned char 
   out.count += n - 1;
 }
 
-// nearest_class by the definition: one distance transform per class, a
-// running minimum.
-cv::Mat nearest_class_per_class(const cv::Mat& lab, const std::vector<unsigned char>& present) {
+}  // namespace
+
+cv::Mat nearest_class_by_transforms(const cv::Mat& lab, const std::vector<unsigned char>& present) {
   cv::Mat best_dist(lab.size(), CV_32FC1, cv::Scalar(std::numeric_limits<float>::max()));
   cv::Mat best_class(lab.size(), CV_8UC1, cv::Scalar(0));
   for (unsigned char c : present) {
@@ -47,8 +47,6 @@ cv::Mat nearest_class_per_class(const cv::Mat& lab, const std::vector<unsigned c
   }
   return best_class;
 }
-
-}  // namespace
 
 cv::Mat nearest_class(const cv::Mat& lab, const std::vector<unsigned char>& present, const cv::Mat& where) {
   CV_Assert(lab.type() == CV_8UC1 && where.type() == CV_8UC1 && where.size() == lab.size());
@@ -110,7 +108,7 @@ cv::Mat nearest_class(const cv::Mat& lab, const std::vector<unsigned char>& pres
         m = std::min(m, k[x + step - 2] + knight);
         m = std::min(m, k[x + 1] + hv);
         k[x] = m;
-        if (w[x] && m >= exact_below) return nearest_class_per_class(lab, present);
+        if (w[x] && m >= exact_below) return nearest_class_by_transforms(lab, present);
       }
       b[x] = static_cast<unsigned char>(k[x] & 0xff);
     }

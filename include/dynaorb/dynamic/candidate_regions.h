@@ -37,6 +37,10 @@ CandidateRegions candidate_regions(const cv::Mat& candidates, const cv::Mat& lab
 // outside `where` (CV_8UC1, lab's size) are answered too, exactly only
 // where their nearest class is closer than 256 px.
 cv::Mat nearest_class(const cv::Mat& lab, const std::vector<unsigned char>& present, const cv::Mat& where);
+// The rule itself, as nearest_class states it: one distanceTransform per
+// class of `present` and a running minimum (nearest_class's fallback where
+// floats would round the distances).
+cv::Mat nearest_class_by_transforms(const cv::Mat& lab, const std::vector<unsigned char>& present);
 
 // The first step of candidate_regions: the mask's 8-connected components
 // (connectedComponentsWithStats: comp, stats, count without the background),

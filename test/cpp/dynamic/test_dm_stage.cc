@@ -410,15 +410,7 @@ TEST(CandidateRegions, NearestClassIsTheClassOfTheNearestTransform) {
     std::vector<unsigned char> asked;
     for (unsigned char c : present)
       if (cv::countNonZero(lab == c) > 0) asked.push_back(c);
-    cv::Mat best_dist(lab.size(), CV_32FC1, cv::Scalar(std::numeric_limits<float>::max()));
-    cv::Mat expected(lab.size(), CV_8UC1, cv::Scalar(0));
-    for (unsigned char c : asked) {
-      cv::Mat dist;
-      cv::distanceTransform(lab != c, dist, cv::DIST_L2, cv::DIST_MASK_5);
-      const cv::Mat closer = dist < best_dist;
-      dist.copyTo(best_dist, closer);
-      expected.setTo(c, closer);
-    }
+    const cv::Mat expected = nearest_class_by_transforms(lab, asked);
     const cv::Mat everywhere(lab.size(), CV_8UC1, cv::Scalar(255));
     const cv::Mat got = nearest_class(lab, asked, everywhere);
     ASSERT_EQ(cv::countNonZero(got != expected), 0) << "scene " << scene << " (" << w << "x" << h << ")";
