@@ -112,6 +112,14 @@ int object_at(const cv::Mat& ids, const cv::Point2f& p, int radius) {
   return best;
 }
 
+// Class id -> the id itself for the movable classes, 0 for the others.
+cv::Mat movable_lut(const std::vector<int>& movable_labels) {
+  cv::Mat lut(1, 256, CV_8UC1, cv::Scalar(0));
+  for (int id : movable_labels)
+    if (id > 0 && id < 256) lut.at<unsigned char>(id) = static_cast<unsigned char>(id);
+  return lut;
+}
+
 // The image size: the current image, else the dynamic mask, else the calibration.
 cv::Size frame_size(const Context& ctx) {
   if (!ctx.current.grey.empty()) return ctx.current.grey.size();
@@ -123,6 +131,8 @@ cv::Size frame_size(const Context& ctx) {
 
 }  // namespace
 
+StdynStage::StdynStage(StdynOptions options) : o_(std::move(options)), movable_lut_(movable_lut(o_.movable_labels)) {}
+
 bool StdynStage::has_objects(const Context& ctx, const cv::Size& size) const {
   // The objects process() decides on: the candidate regions, else the
   // movable classes' pixels in the labels.
@@ -130,9 +140,7 @@ bool StdynStage::has_objects(const Context& ctx, const cv::Size& size) const {
   if (is_mask(cand, size)) return cv::countNonZero(cand) > 0;
   const cv::Mat& labels = ctx.current.labels;
   if (is_mask(labels, size)) {
-    bool movable[256] = {};
-    for (int id : o_.movable_labels)
-      if (id > 0 && id < 256) movable[id] = true;
+    const unsigned char* movable = movable_lut_.ptr<unsigned char>();
     for (int v = 0; v < labels.rows; ++v) {
       const unsigned char* row = labels.ptr<unsigned char>(v);
       for (int u = 0; u < labels.cols; ++u)
@@ -311,11 +319,8 @@ void StdynStage::process(Context& ctx, StageReport& report) {
     return;
   }
   // Only the movable classes split objects (a chair touching a person is no object).
-  cv::Mat lut(1, 256, CV_8UC1, cv::Scalar(0));
-  for (int id : o_.movable_labels)
-    if (id > 0 && id < 256) lut.at<unsigned char>(id) = static_cast<unsigned char>(id);
   cv::Mat movable_labels;
-  if (labels_ok) cv::LUT(labels, lut, movable_labels);
+  if (labels_ok) cv::LUT(labels, movable_lut_, movable_labels);
   // No candidates from an earlier stage: the movable classes' own regions.
   const cv::Mat regions_of = cand_ok ? cand : cv::Mat(movable_labels != 0);
   const auto t_regions = Clock::now();

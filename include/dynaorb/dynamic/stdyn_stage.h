@@ -93,7 +93,7 @@ struct StdynOptions {
 
 class StdynStage : public Stage {
  public:
-  explicit StdynStage(StdynOptions options = {}) : o_(std::move(options)) {}
+  explicit StdynStage(StdynOptions options = {});
 
   std::string name() const override { return "stdyn"; }
   bool supports(Sensor) const override { return true; }
@@ -119,6 +119,7 @@ class StdynStage : public Stage {
   bool has_objects(const Context& ctx, const cv::Size& size) const;
 
   StdynOptions o_;
+  cv::Mat movable_lut_;  // 1x256: class id -> the id for the movable classes, else 0
 };
 
 }  // namespace dynaorb::dynamic
