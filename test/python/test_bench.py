@@ -35,11 +35,15 @@ def test_suite_runs_and_reports(tiny_suite):
     assert set(records) == {"off", "dm"}
     for preset, r in records.items():
         assert not r.get("error"), r.get("error")
-        # A 20-frame synthetic RGB-D clip (0.5 m path): centimetre-level error, every frame tracked.
-        assert 0.0 < r["ate_rmse"] < 0.25, (preset, r["ate_rmse"])
+        assert r["ate_rmse"] is not None and r["ate_rmse"] > 0.0, (preset, r.get("ate_reason"))
         assert r["tracked_fraction"] > 0.9
         assert r["peak_rss_mb"] > 50  # the child's own resident memory, numpy and the core loaded
         assert r["track_call_ms_median"] > 0 and r["frame_ms_median"] > 0
+    # A 20-frame synthetic RGB-D clip (0.5 m path) with movers, mapping asynchronous. dm: centimetre-level
+    # (measured 0.008-0.010 m over 6 runs). off is dragged by the movers (0.20-0.27 m over 11 runs, CI
+    # included): bounded by the path's size, and far worse than dm, which shows the problem is real.
+    assert records["dm"]["ate_rmse"] < 0.03, records["dm"]["ate_rmse"]
+    assert records["off"]["ate_rmse"] < 1.0 and records["off"]["ate_rmse"] > 5 * records["dm"]["ate_rmse"]
     assert records["dm"]["labels"] and records["dm"]["dynamic_filter"]["stages"] == ["semantic", "dm"]
     assert records["off"]["labels"] is None
     text = (out / "report.md").read_text()
