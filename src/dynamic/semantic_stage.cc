@@ -3,6 +3,8 @@
 #include "dynaorb/dynamic/semantic_stage.h"
 
 #include <algorithm>
+#include <cstdint>
+#include <opencv2/core/hal/intrin.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "dynaorb/io/errors.h"
@@ -100,20 +102,82 @@ cv::Mat SemanticStage::candidates(const cv::Mat& labels) const {
   } else {
     return cv::Mat();
   }
-  if (o_.margin <= 0) return movable;
-  const cv::Rect box = cv::boundingRect(movable);
-  if (box.area() == 0) return movable;
-  // Widening by a disc of radius `margin`: pixels within `margin` of a movable
-  // pixel, by the exact Euclidean distance transform (its cost does not grow
-  // with the margin, a 31x31 elliptic dilation's does), over the movable
-  // pixels' bounding box grown by the margin only.
-  const cv::Rect roi = (box + cv::Point(-o_.margin, -o_.margin) + cv::Size(2 * o_.margin, 2 * o_.margin)) &
-                       cv::Rect(0, 0, movable.cols, movable.rows);
-  cv::Mat dist;
-  cv::distanceTransform(~movable(roi), dist, cv::DIST_L2, cv::DIST_MASK_PRECISE, CV_32F);
-  cv::Mat widened = cv::Mat::zeros(movable.size(), CV_8UC1);
-  widened(roi).setTo(255, dist <= static_cast<float>(o_.margin));
-  return widened;
+  return o_.margin > 0 ? widen_by_disc(movable, o_.margin) : movable;
+}
+
+namespace {
+
+// Each pixel's distance along its row to the nearest set pixel of `mask`
+// (rows of `box`, columns of `cols`), saturated at `cap`.
+template <typename T>
+cv::Mat row_distances(const cv::Mat& mask, const cv::Rect& box, const cv::Range& cols, T cap) {
+  cv::Mat h(box.height, cols.size(), cv::DataType<T>::type);
+  for (int y = 0; y < box.height; ++y) {
+    const unsigned char* m = mask.ptr<unsigned char>(box.y + y) + cols.start;
+    T* d = h.ptr<T>(y);
+    T run = cap;
+    for (int x = 0; x < h.cols; ++x) d[x] = run = m[x] ? T(0) : (run < cap ? T(run + 1) : cap);
+    run = cap;
+    for (int x = h.cols - 1; x >= 0; --x) {
+      run = m[x] ? T(0) : (run < cap ? T(run + 1) : cap);
+      if (run < d[x]) d[x] = run;
+    }
+  }
+  return h;
+}
+
+// out[x] = 255 where h[x] <= w, for one row.
+void mark_within(const unsigned char* h, unsigned char w, int n, unsigned char* out) {
+  int x = 0;
+  const cv::v_uint8x16 vw = cv::v_setall_u8(w);
+  for (; x + 16 <= n; x += 16) cv::v_store(out + x, cv::v_load(out + x) | (cv::v_load(h + x) <= vw));
+  for (; x < n; ++x)
+    if (h[x] <= w) out[x] = 255;
+}
+void mark_within(const unsigned short* h, unsigned short w, int n, unsigned char* out) {
+  for (int x = 0; x < n; ++x)
+    if (h[x] <= w) out[x] = 255;
+}
+
+template <typename T>
+cv::Mat widen(const cv::Mat& mask, const cv::Rect& box, int radius) {
+  const cv::Rect roi = (box + cv::Point(-radius, -radius) + cv::Size(2 * radius, 2 * radius)) &
+                       cv::Rect(0, 0, mask.cols, mask.rows);
+  const cv::Mat h = row_distances<T>(mask, box, cv::Range(roi.x, roi.x + roi.width), static_cast<T>(radius + 1));
+  // half[dy]: the disc's half-width dy rows away, the largest w with
+  // w^2 + dy^2 <= radius^2.
+  std::vector<T> half(radius + 1);
+  const int64_t r2 = static_cast<int64_t>(radius) * radius;
+  for (int dy = 0, w = radius; dy <= radius; ++dy) {
+    while (static_cast<int64_t>(w) * w + static_cast<int64_t>(dy) * dy > r2) --w;
+    half[dy] = static_cast<T>(w);
+  }
+  cv::Mat out = cv::Mat::zeros(mask.size(), CV_8UC1);
+  for (int y = roi.y; y < roi.y + roi.height; ++y) {
+    unsigned char* o = out.ptr<unsigned char>(y) + roi.x;
+    for (int yy = std::max(y - radius, box.y); yy <= std::min(y + radius, box.y + box.height - 1); ++yy)
+      mark_within(h.ptr<T>(yy - box.y), half[std::abs(yy - y)], roi.width, o);
+  }
+  return out;
+}
+
+}  // namespace
+
+cv::Mat widen_by_disc(const cv::Mat& mask, int radius) {
+  CV_Assert(mask.type() == CV_8UC1);
+  cv::Mat out = cv::Mat::zeros(mask.size(), CV_8UC1);
+  const cv::Rect box = cv::boundingRect(mask);
+  if (box.area() == 0) return out;
+  if (radius <= 0) {
+    out.setTo(255, mask);
+    return out;
+  }
+  // A pixel is within `radius` of a set pixel dy rows away iff its row
+  // distance to that row's nearest set pixel is at most the disc's
+  // half-width there: the union of those tests over the disc's rows. Exact
+  // (integer squares), and its cost does not depend on the shapes'
+  // complexity; over the set pixels' box grown by the radius only.
+  return radius < 255 ? widen<unsigned char>(mask, box, radius) : widen<unsigned short>(mask, box, radius);
 }
 
 void SemanticStage::process(Context& ctx, StageReport& report) {

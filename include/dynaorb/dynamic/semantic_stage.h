@@ -68,6 +68,12 @@ struct SemanticOptions {
 
 std::string to_string(SemanticOptions::Policy policy);
 
+// CV_8UC1 255 at the pixels within Euclidean distance `radius` of a non-zero
+// pixel of `mask` (CV_8UC1): dilation by the disc x^2 + y^2 <= radius^2, the
+// pixels cv::distanceTransform (DIST_L2, DIST_MASK_PRECISE) puts at
+// <= radius. radius <= 0: the mask itself as 0 / 255.
+cv::Mat widen_by_disc(const cv::Mat& mask, int radius);
+
 class SemanticStage : public Stage {
  public:
   explicit SemanticStage(const SemanticOptions& options = {});
@@ -95,7 +101,6 @@ class SemanticStage : public Stage {
   SemanticOptions o_;
   cv::Mat lut8_;                  // 1x256 CV_8U: 255 for movable ids
   std::vector<unsigned char> lut16_;  // 65536 entries, for 16-bit labels
-  cv::Mat disc_;                  // the margin's structuring element
 };
 
 }  // namespace dynaorb::dynamic

@@ -37,6 +37,32 @@ StageReport run(SemanticStage& stage, FrameData& f, cv::Mat& dynamic) {
   return report;
 }
 
+TEST(SemanticStage, WidenByDiscIsTheExactDistanceTransformsDisc) {
+  // The rule: pixels the exact Euclidean distance transform puts within the radius.
+  const auto by_transform = [](const cv::Mat& mask, int radius) {
+    cv::Mat dist;
+    cv::distanceTransform(mask == 0, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE, CV_32F);
+    return cv::Mat(dist <= static_cast<float>(radius));
+  };
+  cv::RNG rng(7);
+  for (int scene = 0; scene < 60; ++scene) {
+    cv::Mat mask = cv::Mat::zeros(rng.uniform(1, 120), rng.uniform(1, 400), CV_8UC1);
+    for (int k = rng.uniform(0, 6); k > 0; --k) {  // dots, boxes and discs
+      const cv::Point c(rng.uniform(0, mask.cols), rng.uniform(0, mask.rows));
+      const int shape = rng.uniform(0, 3);
+      if (shape == 0) mask.at<unsigned char>(c) = rng.uniform(1, 256);
+      else if (shape == 1) cv::rectangle(mask, cv::Rect(c, cv::Size(rng.uniform(1, 30), rng.uniform(1, 30))), 255, -1);
+      else cv::circle(mask, c, rng.uniform(1, 20), 200, -1);
+    }
+    for (int radius : {1, 2, 3, 7, 15, 16, 40, 254, 255, 300}) {
+      const cv::Mat got = widen_by_disc(mask, radius);
+      const cv::Mat want = cv::countNonZero(mask) ? by_transform(mask, radius) : cv::Mat::zeros(mask.size(), CV_8UC1);
+      ASSERT_EQ(cv::countNonZero(got != want), 0) << "scene " << scene << ", radius " << radius;
+    }
+    ASSERT_EQ(cv::countNonZero(widen_by_disc(mask, 0) != (mask != 0)), 0);
+  }
+}
+
 TEST(SemanticStage, ClassSetsOfThePapers) {
   EXPECT_EQ(voc_movable_classes().size(), 14u);   // DynaSLAM / STDyn / DDL
   EXPECT_EQ(coco_movable_classes().size(), 20u);  // DM-SLAM Sec. 3.2.1
