@@ -23,6 +23,10 @@ void StdynOptions::read(const cv::FileNode& node) {
   read_option(node, "f_ransac_threshold_px", f_ransac_threshold_px);
   read_option(node, "f_ransac_confidence", f_ransac_confidence);
   read_option(node, "f_ransac_iterations", f_ransac_iterations);
+  read_option(node, "f_method", f_method);
+  if (f_method != "ransac" && f_method != "usac")
+    throw InputError("option '" + detail::key_name(node, "f_method") + "': unknown estimator '" + f_method +
+                     "' (ransac or usac)");
   read_option(node, "f_exclude_candidates", f_exclude_candidates);
   read_option(node, "f_refine_on_inliers", f_refine_on_inliers);
   read_option(node, "min_points", min_points);
@@ -257,7 +261,8 @@ void StdynStage::process(Context& ctx, StageReport& report) {
   const auto t_f = Clock::now();
   try {
     std::vector<unsigned char> mask;
-    const cv::Mat Fm = cv::findFundamentalMat(f_prev, f_cur, cv::FM_RANSAC, o_.f_ransac_threshold_px,
+    const cv::Mat Fm = cv::findFundamentalMat(f_prev, f_cur, o_.f_method == "usac" ? cv::USAC_ACCURATE : cv::FM_RANSAC,
+                                              o_.f_ransac_threshold_px,
                                               std::clamp(o_.f_ransac_confidence, 0.0, 1.0),
                                               std::max(o_.f_ransac_iterations, 1), mask);
     // The 7-point fallback can stack up to three solutions: only one 3x3 F is an estimate.

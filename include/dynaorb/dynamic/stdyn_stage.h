@@ -37,6 +37,10 @@ struct StdynOptions {
   double f_ransac_threshold_px = 0.1;
   double f_ransac_confidence = 0.99;
   int f_ransac_iterations = 1000;
+  // The F's estimator: "ransac" (OpenCV's FM_RANSAC, the released codes') or
+  // "usac" (ours: OpenCV's USAC_ACCURATE, GC-RANSAC with local optimisation
+  // and SPRT, the same threshold, confidence and iteration cap).
+  std::string f_method = "ransac";
   // DS-SLAM's code (kept by STDyn's): the F is estimated from every tracked pair
   // (RANSAC rejects the moving ones), not from the pairs outside the
   // segmented objects. true: only pairs outside ctx.current.candidates (ours:

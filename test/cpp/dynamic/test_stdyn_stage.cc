@@ -246,6 +246,15 @@ TEST(StdynStage, MarksThePersonMovingAcrossEpipolarLinesNotTheParkedCar) {
   EXPECT_EQ(value(r2.report, "f_refined"), 1);
   EXPECT_DOUBLE_EQ(marked_fraction(r2.dynamic, person_region), 1.0);
   EXPECT_EQ(marked_fraction(r2.dynamic, car_region), 0.0);
+
+  // The same with USAC's F at the papers' threshold.
+  StdynOptions ou;
+  ou.f_method = "usac";
+  const Outcome r3 = run_stage(p, ou);
+  EXPECT_EQ(r3.report.regions, 1);
+  EXPECT_GT(value(r3.report, "f_inliers"), 100);
+  EXPECT_DOUBLE_EQ(marked_fraction(r3.dynamic, person_region), 1.0);
+  EXPECT_EQ(marked_fraction(r3.dynamic, car_region), 0.0);
 }
 
 // Moving along the camera's own translation (v = k R^T t) keeps every point
@@ -504,7 +513,7 @@ TEST(StdynStage, UndistortsBeforeTheEpipolarCheck) {
 TEST(StdynStage, ReadsOptionsKeepingDefaultsForMissingKeys) {
   cv::FileStorage fs(
       "%YAML:1.0\nstdyn:\n  epipolar_threshold_px: 1.5\n  min_dynamic_points: 3\n"
-      "  f_exclude_candidates: true\n  movable_labels: [15, 7]\n",
+      "  f_exclude_candidates: true\n  movable_labels: [15, 7]\n  f_method: usac\n",
       cv::FileStorage::READ | cv::FileStorage::MEMORY);
   StdynOptions o;
   o.read(fs["stdyn"]);
@@ -512,6 +521,7 @@ TEST(StdynStage, ReadsOptionsKeepingDefaultsForMissingKeys) {
   EXPECT_EQ(o.min_dynamic_points, 3);
   EXPECT_TRUE(o.f_exclude_candidates);
   EXPECT_EQ(o.movable_labels, (std::vector<int>{15, 7}));
+  EXPECT_EQ(o.f_method, "usac");
   const StdynOptions d;
   EXPECT_EQ(o.f_ransac_threshold_px, d.f_ransac_threshold_px);
   EXPECT_EQ(o.f_ransac_confidence, d.f_ransac_confidence);
@@ -527,11 +537,14 @@ TEST(StdynStage, ReadsOptionsKeepingDefaultsForMissingKeys) {
   EXPECT_EQ(d.patch_max_abs_diff, 2120);
   EXPECT_EQ(d.min_dynamic_points, 1);
   EXPECT_FALSE(d.f_exclude_candidates);
+  EXPECT_EQ(d.f_method, "ransac");
 
   cv::FileStorage bad("%YAML:1.0\nstdyn:\n  min_dynamic_points: many\n",
                       cv::FileStorage::READ | cv::FileStorage::MEMORY);
   StdynOptions ob;
   EXPECT_THROW(ob.read(bad["stdyn"]), InputError);
+  cv::FileStorage unknown("%YAML:1.0\nstdyn:\n  f_method: lmeds\n", cv::FileStorage::READ | cv::FileStorage::MEMORY);
+  EXPECT_THROW(ob.read(unknown["stdyn"]), InputError);
   StdynOptions none;
   none.read(cv::FileNode());  // no section: all defaults
   EXPECT_EQ(none.min_dynamic_points, 1);
