@@ -176,7 +176,9 @@ cv::Mat widen_by_disc(const cv::Mat& mask, int radius) {
   // distance to that row's nearest set pixel is at most the disc's
   // half-width there: the union of those tests over the disc's rows. Exact
   // (integer squares), and its cost does not depend on the shapes'
-  // complexity; over the set pixels' box grown by the radius only.
+  // complexity; over the set pixels' box grown by the radius only. No two
+  // pixels are farther apart than cols + rows: a larger radius is that one.
+  radius = std::min(radius, mask.cols + mask.rows);
   return radius < 255 ? widen<unsigned char>(mask, box, radius) : widen<unsigned short>(mask, box, radius);
 }
 

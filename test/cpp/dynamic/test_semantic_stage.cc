@@ -54,7 +54,7 @@ TEST(SemanticStage, WidenByDiscIsTheExactDistanceTransformsDisc) {
       else if (shape == 1) cv::rectangle(mask, cv::Rect(c, cv::Size(rng.uniform(1, 30), rng.uniform(1, 30))), 255, -1);
       else cv::circle(mask, c, rng.uniform(1, 20), 200, -1);
     }
-    for (int radius : {1, 2, 3, 7, 15, 16, 40, 254, 255, 300}) {
+    for (int radius : {1, 2, 3, 7, 15, 16, 40, 254, 255, 300, 1 << 20}) {
       const cv::Mat got = widen_by_disc(mask, radius);
       const cv::Mat want = cv::countNonZero(mask) ? by_transform(mask, radius) : cv::Mat::zeros(mask.size(), CV_8UC1);
       ASSERT_EQ(cv::countNonZero(got != want), 0) << "scene " << scene << ", radius " << radius;
