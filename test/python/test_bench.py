@@ -80,6 +80,41 @@ def test_suites_cover_sensors_and_list_what_is_not_run(tmp_path, data):
     assert {"euroc/MH_05_difficult_head:mono:off", "synth/mono_m0:mono:off", "synth/rgbd_m0:rgbd:off"} <= full_keys
     for suite in (quick, full):
         assert any("fragment" in n["what"] and "not a sequence" in n["reason"] for n in suite.not_run)
+    # A sensor the sequence has no data for is listed as not run, with the reader's reason, not run to fail.
+    mh05 = data / "euroc" / "MH_05_difficult_head" / "mav0"
+    if not (mh05 / "cam1").is_dir():
+        assert "euroc/MH_05_difficult_head:stereo:off" not in full_keys
+        assert any(n["what"] == "euroc/MH_05_difficult_head:stereo" and "no data for sensor 'stereo'" in n["reason"]
+                   for n in full.not_run), full.not_run
+
+
+def test_resume_takes_finished_runs_from_their_folders(tiny_suite):
+    from dynaorb.bench.suite_runner import BenchOptions, run_suite
+
+    out, results = tiny_suite
+    cases, not_run = cases_for([synth_sequence("rgbd", 3, out.parent / "synth", frames=20, seed=7, width=320,
+                                               height=240, fx=262.5)], presets=("dm", "li"))
+    seen = []
+    again = run_suite(BenchOptions(out=str(out), runs=1, peer=False, resume=True),
+                      suite=Suite("test", cases, [c.sequence for c in cases[:1]], not_run), progress=seen.append)
+    # The same records (a run again would have its own wall time and memory), read from each run's record.json.
+    assert again["records"] == results["records"], "resume ran a case again"
+    assert again["finished"] and json.loads((out / "results.json").read_text())["finished"] == again["finished"]
+
+
+def test_peer_failure_is_recorded_and_the_bench_goes_on(tmp_path, data):
+    from dynaorb.bench.suite_runner import _peer_records
+    from dynaorb.bench.suites import Sequence
+
+    mh05 = data / "euroc" / "MH_05_difficult_head"
+    if (mh05 / "mav0" / "cam1").is_dir():
+        pytest.skip("MH_05 here has a right camera")
+    # The sequence cannot be read for stereo: each run gets the error, nothing is raised.
+    seq = Sequence("euroc/MH_05_difficult_head", "euroc", str(mh05), "stereo")
+    records = _peer_records(seq, 2, tmp_path, pathlib.Path("/nonexistent/python"), tmp_path / "voc.txt", 5.0)
+    assert len(records) == 2 and all("no data for sensor 'stereo'" in r["error"] for r in records)
+    assert all((tmp_path / "runs" / "euroc_MH_05_difficult_head_stereo_orbslam3" / str(i) / "record.json").is_file()
+               for i in range(2))
 
 
 def test_peer_settings_and_manifest(tmp_path, data):

@@ -7,8 +7,12 @@ kept beside it for the comparison with the peer, which is timed that way.
 The peer (ORB-SLAM3 through pyorbslam3) runs on each sequence N times in
 `off` terms: no dynamic filter.
 
-Writes OUT/results.json (every run, every number), OUT/report.md and the
-plots (report.py); run folders under OUT/runs/<case>/<run>.
+Writes OUT/results.json (every run, every number; rewritten after every
+case, so a bench stopped part way keeps what it measured, with "finished"
+null), OUT/report.md and the plots (report.py); run folders under
+OUT/runs/<case>/<run>, each with its spec and record.json. With `resume` a
+run whose folder holds a record for the same spec is taken from there
+instead of being run again (its times are from when it ran).
 """
 from __future__ import annotations
 
@@ -44,10 +48,29 @@ class BenchOptions:
     # without label images (the real ones): run asynchronously, as on a live
     # camera, its time reported apart from the tracking thread's. None: no network.
     segment_model: str | None = None
+    resume: bool = False            # reuse OUT/runs/<case>/<run>/record.json written for the same spec
 
 
 def _slug(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", text)
+
+
+def _reused(out: pathlib.Path, spec_name: str, spec: dict, resume: bool) -> dict | None:
+    """The record an earlier bench left in out for the same spec (resume), else None."""
+    record, spec_file = out / "record.json", out / spec_name
+    if not (resume and record.is_file() and spec_file.is_file()):
+        return None
+    try:
+        if json.loads(spec_file.read_text()) != spec:
+            return None
+        return json.loads(record.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _keep(out: pathlib.Path, record: dict) -> dict:
+    (out / "record.json").write_text(json.dumps(record, indent=1))
+    return record
 
 
 def _ours_record(case: Case, run: int, out: pathlib.Path, opts: BenchOptions) -> dict:
@@ -61,6 +84,10 @@ def _ours_record(case: Case, run: int, out: pathlib.Path, opts: BenchOptions) ->
             spec["labels"] = seq.labels
         elif opts.segment_model:
             spec.update(segment=opts.segment_model, segment_mode="async", segment_threads=1)
+    reused = _reused(out, "spec.json", spec, opts.resume)
+    if reused is not None:
+        return reused
+    (out / "record.json").unlink(missing_ok=True)
     (out / "spec.json").write_text(json.dumps(spec, indent=1))
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in [str(pathlib.Path(__file__).resolve().parents[2]),
                                                                 os.environ.get("PYTHONPATH", "")] if p))
@@ -91,7 +118,7 @@ def _ours_record(case: Case, run: int, out: pathlib.Path, opts: BenchOptions) ->
             "stages", "labels", "summary", "all_dynamic_frames", "stage_failures")}
     else:
         record["error"] = (child.failure() or "no result written") + "\n" + child.log_tail()
-    return record
+    return _keep(out, record)
 
 
 def _has_semantic(preset: str, sensor: str) -> bool:
@@ -118,13 +145,26 @@ def _metrics(stats: dict) -> dict:
     }
 
 
-def _peer_records(seq: Sequence, runs: int, root: pathlib.Path, python, vocabulary, timeout_s: float) -> list[dict]:
+def _peer_records(seq: Sequence, runs: int, root: pathlib.Path, python, vocabulary, timeout_s: float,
+                  resume: bool = False) -> list[dict]:
     from dynaorb.peer import orbslam3
 
     records = []
     for run in range(runs):
         out = root / "runs" / _slug(f"{seq.key}:orbslam3") / str(run)
-        stats = orbslam3.run(orbslam3.PeerCase(seq.kind, seq.path, seq.sensor, out), python, vocabulary, timeout_s)
+        spec = {"kind": seq.kind, "path": seq.path, "sensor": seq.sensor, "vocabulary": str(vocabulary)}
+        reused = _reused(out, "peer_spec.json", spec, resume)
+        if reused is not None:
+            records.append(reused)
+            continue
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "record.json").unlink(missing_ok=True)
+        (out / "peer_spec.json").write_text(json.dumps(spec, indent=1))
+        try:
+            stats = orbslam3.run(orbslam3.PeerCase(seq.kind, seq.path, seq.sensor, out), python, vocabulary,
+                                 timeout_s)
+        except Exception as exc:  # e.g. the sequence cannot be read for this sensor: recorded, the bench goes on
+            stats = {"error": f"{type(exc).__name__}: {exc}"}
         record = {"system": "orbslam3", "case": f"{seq.key}:orbslam3", "sequence": seq.name, "sensor": seq.sensor,
                   "preset": "off", "run": run, "out": str(out), "peak_rss_mb": stats.get("peak_rss_mb"),
                   "process_wall_s": stats.get("wall_s")}
@@ -135,7 +175,7 @@ def _peer_records(seq: Sequence, runs: int, root: pathlib.Path, python, vocabula
             record["trajectory"] = str(out / "trajectory.tum")
             record["stats"] = {k: stats.get(k) for k in ("frames", "tracked_frames", "states", "init_s", "exit",
                                                           "pyorbslam3", "trajectory_poses")}
-        records.append(record)
+        records.append(_keep(out, record))
     return records
 
 
@@ -172,7 +212,8 @@ def run_suite(opts: BenchOptions, suite: Suite | None = None, progress=print) ->
                "machine": machine(), "mapping": "local mapping in its own thread (synchronous_mapping False), "
                                                 "as a live camera runs",
                "vocabulary": opts.vocabulary, "not_run": list(suite.not_run),
-               "sequences": [dataclasses.asdict(s) for s in suite.sequences], "records": [], "peer": None}
+               "sequences": [dataclasses.asdict(s) for s in suite.sequences], "records": [], "peer": None,
+               "finished": None}
     for case in suite.cases:
         for run in range(opts.runs):
             progress(f"dynaorb {case.key} run {run + 1}/{opts.runs}")
@@ -180,17 +221,25 @@ def run_suite(opts: BenchOptions, suite: Suite | None = None, progress=print) ->
             if record.get("error"):
                 progress(f"  failed: {record['error'].splitlines()[0]}")
             results["records"].append(record)
+        _save(out, results)
     if opts.peer:
-        results["peer"] = _run_peer(suite, opts, out, results["records"], progress)
+        results["peer"] = _run_peer(suite, opts, out, results, progress)
     else:
         results["peer"] = {"status": "skipped (--no-peer)"}
     results["finished"] = datetime.datetime.now().isoformat(timespec="seconds")
-    (out / "results.json").write_text(json.dumps(results, indent=1))
+    _save(out, results)
     report.write(results, out)
     return results
 
 
-def _run_peer(suite: Suite, opts: BenchOptions, out: pathlib.Path, records: list, progress) -> dict:
+def _save(out: pathlib.Path, results: dict) -> None:
+    """results.json as it stands (written whole, then moved over the last one)."""
+    part = out / "results.json.part"
+    part.write_text(json.dumps(results, indent=1))
+    part.replace(out / "results.json")
+
+
+def _run_peer(suite: Suite, opts: BenchOptions, out: pathlib.Path, results: dict, progress) -> dict:
     from dynaorb.peer import orbslam3
 
     try:
@@ -201,9 +250,10 @@ def _run_peer(suite: Suite, opts: BenchOptions, out: pathlib.Path, records: list
         return {"status": f"not run: {exc}"}
     for seq in suite.sequences:
         progress(f"orbslam3 {seq.key} ({opts.runs} runs)")
-        for record in _peer_records(seq, opts.runs, out, python, vocabulary, opts.timeout_s):
+        for record in _peer_records(seq, opts.runs, out, python, vocabulary, opts.timeout_s, opts.resume):
             if record.get("error"):
                 progress(f"  failed: {record['error'].splitlines()[0]}")
-            records.append(record)
+            results["records"].append(record)
+        _save(out, results)
     return {"status": "run", "package": orbslam3.PYORBSLAM3, "venv": str(python.parent.parent),
             "vocabulary": str(vocabulary)}

@@ -113,6 +113,18 @@ def preset_applicability(preset: str, sensor: str) -> str | None:
     return None
 
 
+def sensor_unavailable(kind: str, path: pathlib.Path, sensor: str) -> str | None:
+    """None when the dataset reader opens the sequence for this sensor, else its error (e.g. an EuRoC
+    sequence shipped with cam0 only has no stereo)."""
+    from dynaorb import core
+
+    try:
+        core().open_dataset(kind, str(path), sensor)
+    except Exception as exc:  # InputError naming the sequence and what it lacks
+        return str(exc)
+    return None
+
+
 def cases_for(sequences: list[Sequence], presets: tuple[str, ...] | None = None) -> tuple[list[Case], list[dict]]:
     """`off` and every applicable preset for each sequence; the pairs left out, with why."""
     presets = presets if presets is not None else tuple(p for p in dynamic_presets() if p != "off")
@@ -138,7 +150,12 @@ def build_suite(name: str, data: pathlib.Path, synth_root: pathlib.Path,
         if not path.is_dir():
             not_run.append({"what": seq_name, "reason": f"{path} not found"})
             continue
-        sequences += [Sequence(seq_name, kind, str(path), s) for s in sensors]
+        for sensor in sensors:
+            why = sensor_unavailable(kind, path, sensor)
+            if why is None:
+                sequences.append(Sequence(seq_name, kind, str(path), sensor))
+            else:
+                not_run.append({"what": f"{seq_name}:{sensor}", "reason": why})
     if (data / TUM_FRAGMENT).is_dir():
         # Listed in both suites: it is in ../shared/data but cannot be run.
         not_run.append({"what": TUM_FRAGMENT,

@@ -151,7 +151,8 @@ def cmd_bench(args) -> int:
         from dynaorb.bench.suite_runner import BenchOptions, run_suite
 
         run_suite(BenchOptions(suite=args.suite, out=args.out, runs=args.runs or 3, peer=not args.no_peer,
-                               peer_venv=args.peer_venv, segment_model=_bench_network(args)))
+                               peer_venv=args.peer_venv, segment_model=_bench_network(args),
+                               resume=args.resume))
         print((out / "report.md").read_text())
         if args.readme:
             _write_readme(out)

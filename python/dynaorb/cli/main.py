@@ -148,6 +148,10 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--readme", action="store_true",
                    help="write the README's Results section from OUT/results.json (after the run; "
                         "alone, without --suite, from a finished run)")
+    b.add_argument("--resume", action="store_true",
+                   help="quick/full: take each run whose OUT/runs folder holds a record for the same spec from "
+                        "there instead of running it again (a bench stopped part way goes on where it stopped; "
+                        "the reused runs' times are from when they ran)")
     b.add_argument("--report-only", action="store_true",
                    help="render OUT/report.md again from OUT/results.json without running anything")
     b.add_argument("--models", help="folder of models (default ../shared/models/segmentation, else the cache)")
