@@ -27,6 +27,7 @@ from dynaorb.runner import RunOptions, run_dataset
 # scored here either (their descriptor patches straddle both sides).
 VOID_BAND_PX = 5
 CAR = 7
+PERSON = 15
 
 
 def _frames(seq: pathlib.Path, sensor: str) -> list[pathlib.Path]:
@@ -46,11 +47,13 @@ def _preset(tmp_path, name: str, text: str) -> str:
     return str(path)
 
 
-def _keypoint_scores(seq, sensor, masks_dir) -> tuple[float, float, int]:
+def _keypoint_scores(seq, sensor, masks_dir) -> tuple[float, float, int, dict]:
     """Pooled keypoint precision and recall over the frames with 20-40 % movers
-    (the first frame, which has no previous frame, left out)."""
+    (the first frame, which has no previous frame, left out), and the recall
+    on each mover class ({label id: recall}: the persons, the vehicle)."""
     tp = fp = fn = 0
     frames = 0
+    by_class = {PERSON: [0, 0], CAR: [0, 0]}  # [found, dynamic keypoints]
     settings = core().Settings.load(str(seq / "settings.yaml"))
     for i, image in enumerate(_frames(seq, sensor)):
         if i == 0:
@@ -71,10 +74,14 @@ def _keypoint_scores(seq, sensor, masks_dir) -> tuple[float, float, int]:
         tp += int(np.sum(t & p))
         fp += int(np.sum(~t & p))
         fn += int(np.sum(t & ~p))
+        labels = cv2.imread(str(seq / "labels" / image.name), cv2.IMREAD_UNCHANGED)[v, u][keep]
+        for c, count in by_class.items():
+            count[0] += int(np.sum(t & p & (labels == c)))
+            count[1] += int(np.sum(t & (labels == c)))
         frames += 1
     precision = tp / max(tp + fp, 1)
     recall = tp / max(tp + fn, 1)
-    return precision, recall, frames
+    return precision, recall, frames, {c: found / max(n, 1) for c, (found, n) in by_class.items()}
 
 
 SEMANTIC_CANDIDATES = "Dynamic.semantic: {classes: voc, margin: 5, policy: static_until_proven}\n"
@@ -90,7 +97,10 @@ SEMANTIC_CANDIDATES = "Dynamic.semantic: {classes: voc, margin: 5, policy: stati
 #          10 % dynamic points per object 1.00 / 0.90 (the vehicle, moving
 #          along its epipolar lines, is what recall misses)
 #   li:    0.82 / 0.76, no semantic input (rectangles overshoot the movers;
-#          large crossing people pull the RANSAC fundamental matrix)
+#          large crossing people pull the RANSAC fundamental matrix). Recall
+#          0.91 on the crossing persons, 0.50 on the vehicle, whose points
+#          move along their epipolar lines: Li's check finds 0.8-0.9 of its
+#          keypoints in 27 of 59 frames and at most 0.05 in 23.
 STAGES = {
     "dm": ("rgbd", "Dynamic.stages: [semantic, dm]\n" + SEMANTIC_CANDIDATES, 0.9, 0.9),
     "ddl": ("rgbd", "Dynamic.stages: [semantic, ddl]\n" + SEMANTIC_CANDIDATES
@@ -109,10 +119,13 @@ def test_geometric_stage_precision_and_recall(tmp_path, synth_scenes, stage):
     stats = _run(tmp_path, synth_scenes, sensor, 3, stage, dynamic=_preset(tmp_path, stage, text),
                  save_masks=str(masks),
                  **({} if stage == "li" else {"labels": str(synth_scenes[sensor, 3] / "labels")}))
-    precision, recall, frames = _keypoint_scores(synth_scenes[sensor, 3], sensor, masks)
+    precision, recall, frames, by_class = _keypoint_scores(synth_scenes[sensor, 3], sensor, masks)
     assert frames >= 30, frames
-    print(f"{stage}: precision {precision:.3f} recall {recall:.3f} over {frames} frames")
+    print(f"{stage}: precision {precision:.3f} recall {recall:.3f} over {frames} frames; recall persons "
+          f"{by_class[PERSON]:.3f} vehicle {by_class[CAR]:.3f}")
     assert precision >= least_precision and recall >= least_recall, (stage, precision, recall)
+    if stage == "li":  # the movers an epipolar check can see: the issue's 0.9 holds (measured 0.911)
+        assert by_class[PERSON] >= 0.9, by_class
     assert stats["dynamic_filter"]["stage_failures"] == 0
 
 
@@ -142,6 +155,29 @@ def test_li_without_semantic_input_within_1_5x(tmp_path, synth_scenes):
     # Target 1.5x, missed: measured 0.0080 / 0.0030 m = 2.65x (without any
     # filter 0.0105 m, 3.5x). A regression bound:
     assert li["ate"]["rmse"] <= 3.2 * static["ate"]["rmse"]
+
+
+def test_an_epipolar_check_alone_cannot_reach_1_5x_here(tmp_path, synth_scenes):
+    """Why li misses its 1.5x: the vehicle travels beside the camera in its
+    direction of motion, so its points stay on their epipolar lines, and it is
+    the vehicle that drags the pose. Even the persons' exact masks, with the
+    vehicle left in (what a perfect epipolar detector could give), stay far
+    from 1.5x; the vehicle's mask alone, with the persons left in, is close."""
+    seq = synth_scenes["stereo", 3]
+    static = _run(tmp_path, synth_scenes, "stereo", 0, "static")["ate"]["rmse"]
+    ratio = {}
+    for name, label in (("persons", PERSON), ("vehicle", CAR)):
+        masks = tmp_path / name
+        masks.mkdir()
+        for truth_file in sorted((seq / "dynamic_masks").glob("*.png")):
+            truth = cv2.imread(str(truth_file), cv2.IMREAD_UNCHANGED) > 0
+            labels = cv2.imread(str(seq / "labels" / truth_file.name), cv2.IMREAD_UNCHANGED)
+            cv2.imwrite(str(masks / truth_file.name), ((truth & (labels == label)) * 255).astype(np.uint8))
+        ratio[name] = _run(tmp_path, synth_scenes, "stereo", 3, name, masks=str(masks))["ate"]["rmse"] / static
+    print(f"ATE / static with the exact masks of the persons only {ratio['persons']:.2f}, "
+          f"of the vehicle only {ratio['vehicle']:.2f}")
+    # Measured (seed 0): persons only 3.78x (0.0113 m), vehicle only 1.25x (0.0037 m).
+    assert ratio["persons"] > 2.5 and ratio["vehicle"] < 1.5, ratio
 
 
 def test_parked_car_keeps_its_features_under_dm(tmp_path, synth_scenes):
