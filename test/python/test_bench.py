@@ -183,6 +183,11 @@ def test_report_renders_from_results(tmp_path):
     assert "| s | stereo | 0.0300 | 0.0100 | 3.00 | 45.0 | 60.0 | 0.75 |" in text
     assert "0.0300 (0.0200-0.0400)" in text
     assert "s:stereo:li: died of signal SIGSEGV" in text and "- x: why" in text
+    # Tracked on far fewer frames than the peer: the ATE ratio is flagged as not comparable.
+    records[0]["tracked_fraction"] = records[1]["tracked_fraction"] = 0.1
+    (tmp_path / "results.json").write_text(json.dumps(results))
+    text = report.write(report.load(tmp_path), tmp_path).read_text()
+    assert "| 3.00 (over 10 % vs 100 % of the frames: not comparable) |" in text
 
 
 def test_readme_section_is_replaced(tmp_path):

@@ -135,12 +135,26 @@ def case_table(rows: list[dict]) -> list[str]:
           _f(r["peak_rss_mb"], "{:.0f}")] for r in rows))
 
 
+# Tracked fractions further apart than this: the two ATEs are over different
+# stretches of the sequence, and their ratio says little.
+COMPARABLE_TRACKED_GAP = 0.1
+
+
+def _ate_ratio_cell(p: dict) -> str:
+    cell = _f(p["ate_ratio"], "{:.2f}")
+    ours, theirs = p["ours"].get("tracked_fraction"), p["theirs"].get("tracked_fraction")
+    if p["ate_ratio"] is not None and ours is not None and theirs is not None and \
+            abs(ours - theirs) > COMPARABLE_TRACKED_GAP:
+        cell += f" (over {_pct(ours)} vs {_pct(theirs)} of the frames: not comparable)"
+    return cell
+
+
 def pair_table(ps: list[dict]) -> list[str]:
     return markdown_table(
         ["sequence", "sensor", "ATE dynaorb [m]", "ATE ORB-SLAM3 [m]", "ATE ours/theirs", "ms/frame dynaorb",
          "ms/frame ORB-SLAM3", "ms ours/theirs", "tracked dynaorb", "tracked ORB-SLAM3"],
         ([p["sequence"], p["sensor"], _f(p["ours"]["ate_rmse"], "{:.4f}"), _f(p["theirs"]["ate_rmse"], "{:.4f}"),
-          _f(p["ate_ratio"], "{:.2f}"), _f(p["ours"]["track_call_ms_median"], "{:.1f}"),
+          _ate_ratio_cell(p), _f(p["ours"]["track_call_ms_median"], "{:.1f}"),
           _f(p["theirs"]["track_call_ms_median"], "{:.1f}"), _f(p["ms_ratio"], "{:.2f}"),
           _pct(p["ours"]["tracked_fraction"]), _pct(p["theirs"]["tracked_fraction"])] for p in ps))
 
