@@ -100,6 +100,14 @@ def test_resume_takes_finished_runs_from_their_folders(tiny_suite):
     # The same records (a run again would have its own wall time and memory), read from each run's record.json.
     assert again["records"] == results["records"], "resume ran a case again"
     assert again["finished"] and json.loads((out / "results.json").read_text())["finished"] == again["finished"]
+    # A corrupt record is not trusted: that run is made again, the others are still reused.
+    off = pathlib.Path(results["records"][0]["out"])
+    (off / "record.json").write_text("{not json")
+    third = run_suite(BenchOptions(out=str(out), runs=1, peer=False, resume=True),
+                      suite=Suite("test", cases, [c.sequence for c in cases[:1]], not_run), progress=seen.append)
+    assert third["records"][1:] == results["records"][1:]
+    assert third["records"][0]["process_wall_s"] != results["records"][0]["process_wall_s"]
+    assert json.loads((off / "record.json").read_text()) == third["records"][0]
 
 
 def test_peer_failure_is_recorded_and_the_bench_goes_on(tmp_path, data):
