@@ -70,7 +70,8 @@ void LocalMapper::create_new_points(const std::shared_ptr<KeyFrame>& kf_ptr) {
       const double median = kf2.median_depth(0.5);
       if (median <= 0 || baseline / median < 0.01) continue;
     }
-    const auto pairs = matcher.search_for_triangulation(kf1, kf2, fundamental(kf1, kf2));
+    const auto pairs = matcher.search_for_triangulation(
+        kf1, kf2, fundamental(kf1, kf2), mono ? o_.triangulation_bow_mono : o_.triangulation_bow_stereo);
     Eigen::Matrix<double, 3, 4> P2 = kf2.T_cw().matrix().topRows<3>();
     const Eigen::Matrix3d Rwc2 = kf2.T_wc().rotation();
     for (const auto& [i1, i2] : pairs) {

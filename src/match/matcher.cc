@@ -243,27 +243,30 @@ int Matcher::search_by_projection(Frame& cur, const KeyFrame& kf, double th, int
 
 std::vector<std::pair<int, int>> Matcher::search_for_triangulation(const KeyFrame& kf1,
                                                                    const KeyFrame& kf2,
-                                                                   const Eigen::Matrix3d& F12) const {
+                                                                   const Eigen::Matrix3d& F12,
+                                                                   bool by_bow) const {
   const map::Features& f1 = kf1.f();
   const map::Features& f2 = kf2.f();
   const map::ScalePyramid& s = kf1.calib().scale;
   // Epipole of kf1's centre in kf2: matches too close to it are ill-conditioned.
   const Eigen::Vector3d c1_in_2 = kf2.T_cw() * kf1.center();
   const Eigen::Vector2d ep = kf2.calib().project(c1_in_2);
-  std::vector<int> free2;
-  for (int j = 0; j < f2.size(); ++j)
-    if (!kf2.point(j)) free2.push_back(j);
   std::vector<int> match12(f1.size(), -1), best_for2(f2.size(), INT_MAX), owner2(f2.size(), -1);
   RotationHistogram hist(o_.histogram_bins);
-  for (int i = 0; i < f1.size(); ++i) {
-    if (kf1.point(i)) continue;
+  // The best kf2 keypoint for kf1's keypoint i among the candidates.
+  auto match_one = [&](int i, const auto& candidates) {
+    if (kf1.point(i)) return;
     const cv::KeyPoint& k1 = f1.keys_un[i];
     const bool stereo1 = f1.u_right[i] >= 0;
     const Eigen::Vector3d line = Eigen::Vector3d(k1.pt.x, k1.pt.y, 1.0).transpose() * F12;
     const double norm2 = line.x() * line.x() + line.y() * line.y();
-    if (norm2 == 0) continue;
+    if (norm2 == 0) return;
     int best = o_.th_low + 1, best_j = -1;
-    for (int j : free2) {
+    for (const auto jj : candidates) {
+      const int j = static_cast<int>(jj);
+      if (kf2.point(j)) continue;
+      const int d = hamming(f1.descriptor(i), f2.descriptor(j));
+      if (d >= best) continue;
       const cv::KeyPoint& k2 = f2.keys_un[j];
       const double num = line.x() * k2.pt.x + line.y() * k2.pt.y + line.z();
       if (num * num / norm2 >= 3.84 * s.sigma2[k2.octave]) continue;
@@ -271,21 +274,41 @@ std::vector<std::pair<int, int>> Matcher::search_for_triangulation(const KeyFram
         const double dx = ep.x() - k2.pt.x, dy = ep.y() - k2.pt.y;
         if (c1_in_2.z() > 0 && dx * dx + dy * dy < 100 * s.scale[k2.octave]) continue;
       }
-      const int d = hamming(f1.descriptor(i), f2.descriptor(j));
-      if (d < best) {
-        best = d;
-        best_j = j;
-      }
+      best = d;
+      best_j = j;
     }
-    if (best_j < 0) continue;
+    if (best_j < 0) return;
     if (owner2[best_j] >= 0) {  // kf2 keypoint claimed twice: the closer descriptor wins
-      if (best >= best_for2[best_j]) continue;
+      if (best >= best_for2[best_j]) return;
       match12[owner2[best_j]] = -1;
     }
     owner2[best_j] = i;
     best_for2[best_j] = best;
     match12[i] = best_j;
     if (o_.check_orientation) hist.add(i, k1.angle, f2.keys_un[best_j].angle);
+  };
+  if (by_bow && kf1.bow() && kf2.bow()) {
+    // ORB-SLAM's SearchForTriangulation: compare only keypoints under the
+    // same vocabulary node (the direct index).
+    const vocab::FeatureVector& v1 = kf1.bow()->nodes;
+    const vocab::FeatureVector& v2 = kf2.bow()->nodes;
+    auto i1 = v1.begin();
+    auto i2 = v2.begin();
+    while (i1 != v1.end() && i2 != v2.end()) {
+      if (i1->first < i2->first) {
+        i1 = v1.lower_bound(i2->first);
+      } else if (i2->first < i1->first) {
+        i2 = v2.lower_bound(i1->first);
+      } else {
+        for (const unsigned i : i1->second) match_one(static_cast<int>(i), i2->second);
+        ++i1;
+        ++i2;
+      }
+    }
+  } else {
+    std::vector<int> all2(f2.size());
+    for (int j = 0; j < f2.size(); ++j) all2[j] = j;
+    for (int i = 0; i < f1.size(); ++i) match_one(i, all2);
   }
   if (o_.check_orientation)
     for (int i : hist.rejected()) match12[i] = -1;

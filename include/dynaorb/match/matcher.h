@@ -56,10 +56,13 @@ class Matcher {
 
   // Pairs of unmatched keypoints of kf1 / kf2 whose descriptors agree and
   // whose kf2 keypoint lies on the epipolar line of the kf1 one (F12 maps kf1
-  // pixels to kf2 lines), for triangulation.
+  // pixels to kf2 lines), for triangulation. by_bow and both bags of words:
+  // only keypoints under the same vocabulary node are compared (ORB-SLAM's
+  // direct index); else every unmatched pair.
   std::vector<std::pair<int, int>> search_for_triangulation(const map::KeyFrame& kf1,
                                                             const map::KeyFrame& kf2,
-                                                            const Eigen::Matrix3d& F12) const;
+                                                            const Eigen::Matrix3d& F12,
+                                                            bool by_bow = true) const;
 
   // Monocular initialisation (ORB-SLAM2's SearchForInitialization): each
   // level-0 keypoint i of f1 against the level-0 keypoints of f2 in a square
