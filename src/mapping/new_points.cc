@@ -15,19 +15,6 @@ using map::MapPoint;
 
 namespace {
 
-Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d m;
-  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return m;
-}
-
-// F12 such that x1^T F12 x2 = 0 for pixels x1 of kf1 and x2 of kf2.
-Eigen::Matrix3d fundamental(const KeyFrame& kf1, const KeyFrame& kf2) {
-  const Eigen::Isometry3d T12 = kf1.T_cw() * kf2.T_wc();
-  const Eigen::Matrix3d E = skew(T12.translation()) * T12.rotation();
-  return kf1.calib().K_eigen().inverse().transpose() * E * kf2.calib().K_eigen().inverse();
-}
-
 // Reprojection check of a new point in one keyframe (chi2 at 95 %).
 bool reprojects(const KeyFrame& kf, int i, const Eigen::Vector3d& X) {
   const Eigen::Vector3d pc = kf.T_cw() * X;
@@ -70,8 +57,9 @@ void LocalMapper::create_new_points(const std::shared_ptr<KeyFrame>& kf_ptr) {
       const double median = kf2.median_depth(0.5);
       if (median <= 0 || baseline / median < 0.01) continue;
     }
-    const auto pairs = matcher.search_for_triangulation(
-        kf1, kf2, fundamental(kf1, kf2), mono ? o_.triangulation_bow_mono : o_.triangulation_bow_stereo);
+    const bool by_bow = mono ? o_.triangulation_bow_mono : o_.triangulation_bow_stereo;
+    const auto pairs =
+        matcher.search_for_triangulation(kf1, kf2, match::Matcher::fundamental(kf1, kf2), by_bow);
     Eigen::Matrix<double, 3, 4> P2 = kf2.T_cw().matrix().topRows<3>();
     const Eigen::Matrix3d Rwc2 = kf2.T_wc().rotation();
     for (const auto& [i1, i2] : pairs) {

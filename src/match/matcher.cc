@@ -241,6 +241,14 @@ int Matcher::search_by_projection(Frame& cur, const KeyFrame& kf, double th, int
   return n;
 }
 
+Eigen::Matrix3d Matcher::fundamental(const KeyFrame& kf1, const KeyFrame& kf2) {
+  const Eigen::Isometry3d T12 = kf1.T_cw() * kf2.T_wc();
+  const Eigen::Vector3d& t = T12.translation();
+  Eigen::Matrix3d t_x;
+  t_x << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
+  return kf1.calib().K_eigen().inverse().transpose() * t_x * T12.rotation() * kf2.calib().K_eigen().inverse();
+}
+
 std::vector<std::pair<int, int>> Matcher::search_for_triangulation(const KeyFrame& kf1,
                                                                    const KeyFrame& kf2,
                                                                    const Eigen::Matrix3d& F12,

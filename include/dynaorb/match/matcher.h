@@ -59,6 +59,8 @@ class Matcher {
   // pixels to kf2 lines), for triangulation. by_bow and both bags of words:
   // only keypoints under the same vocabulary node are compared (ORB-SLAM's
   // direct index); else every unmatched pair.
+  // The F12 above from the two keyframes' poses and calibration.
+  static Eigen::Matrix3d fundamental(const map::KeyFrame& kf1, const map::KeyFrame& kf2);
   std::vector<std::pair<int, int>> search_for_triangulation(const map::KeyFrame& kf1,
                                                             const map::KeyFrame& kf2,
                                                             const Eigen::Matrix3d& F12,

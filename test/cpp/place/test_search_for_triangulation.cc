@@ -27,18 +27,6 @@ std::shared_ptr<KeyFrame> bare_keyframe(int i, bool bow) {
   return kf;
 }
 
-Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d m;
-  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return m;
-}
-
-Eigen::Matrix3d fundamental(const KeyFrame& kf1, const KeyFrame& kf2) {
-  const Eigen::Isometry3d T12 = kf1.T_cw() * kf2.T_wc();
-  const Eigen::Matrix3d Kinv = kf1.calib().K_eigen().inverse();
-  return Kinv.transpose() * skew(T12.translation()) * T12.rotation() * Kinv;
-}
-
 struct Scored {
   int pairs = 0, with_depth = 0, agree = 0;
   double ms = 0;
@@ -53,7 +41,7 @@ constexpr double kAgreePx = 10.0;
 Scored score(const KeyFrame& kf1, const KeyFrame& kf2, bool bow) {
   const match::Matcher matcher;
   const auto t0 = std::chrono::steady_clock::now();
-  const auto pairs = matcher.search_for_triangulation(kf1, kf2, fundamental(kf1, kf2));
+  const auto pairs = matcher.search_for_triangulation(kf1, kf2, match::Matcher::fundamental(kf1, kf2));
   Scored s;
   s.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   s.pairs = static_cast<int>(pairs.size());
@@ -96,7 +84,7 @@ TEST(SearchForTriangulation, KeypointsWithMapPointsAreLeftOut) {
   const auto kf1 = test::make_keyframe(map, 0);
   const auto kf2 = test::make_keyframe(map, 2);
   const match::Matcher matcher;
-  const auto pairs = matcher.search_for_triangulation(*kf1, *kf2, fundamental(*kf1, *kf2));
+  const auto pairs = matcher.search_for_triangulation(*kf1, *kf2, match::Matcher::fundamental(*kf1, *kf2));
   for (const auto& [i1, i2] : pairs) {
     EXPECT_FALSE(kf1->point(i1)) << i1;
     EXPECT_FALSE(kf2->point(i2)) << i2;
