@@ -54,13 +54,15 @@ class Matcher {
   // descriptor distance at most max_distance, then the orientation check.
   int search_by_projection(map::Frame& cur, const map::KeyFrame& kf, double th, int max_distance) const;
 
+  // F12 such that x1^T F12 x2 = 0 for pixels x1 of kf1 and x2 of kf2, from
+  // the two keyframes' poses and calibration.
+  static Eigen::Matrix3d fundamental(const map::KeyFrame& kf1, const map::KeyFrame& kf2);
+
   // Pairs of unmatched keypoints of kf1 / kf2 whose descriptors agree and
   // whose kf2 keypoint lies on the epipolar line of the kf1 one (F12 maps kf1
   // pixels to kf2 lines), for triangulation. by_bow and both bags of words:
   // only keypoints under the same vocabulary node are compared (ORB-SLAM's
   // direct index); else every unmatched pair.
-  // The F12 above from the two keyframes' poses and calibration.
-  static Eigen::Matrix3d fundamental(const map::KeyFrame& kf1, const map::KeyFrame& kf2);
   std::vector<std::pair<int, int>> search_for_triangulation(const map::KeyFrame& kf1,
                                                             const map::KeyFrame& kf2,
                                                             const Eigen::Matrix3d& F12,
