@@ -24,6 +24,25 @@ bool slot_taken(const Frame& f, int i) {
   return p && !p->erased() && p->observation_count() > 0;
 }
 
+// Walks two direct indices in node order and calls fn(features of a, features
+// of b) for each node both have (matching compares only under a shared node).
+template <typename Fn>
+void for_each_shared_node(const vocab::FeatureVector& a, const vocab::FeatureVector& b, Fn&& fn) {
+  auto ia = a.begin();
+  auto ib = b.begin();
+  while (ia != a.end() && ib != b.end()) {
+    if (ia->first < ib->first) {
+      ia = a.lower_bound(ib->first);
+    } else if (ib->first < ia->first) {
+      ib = b.lower_bound(ia->first);
+    } else {
+      fn(ia->second, ib->second);
+      ++ia;
+      ++ib;
+    }
+  }
+}
+
 void drop_rejected(Frame& cur, const RotationHistogram& h, int& n) {
   for (int i : h.rejected()) {
     cur.points[i].reset();
@@ -160,27 +179,14 @@ int Matcher::search_by_bow(const KeyFrame& kf, Frame& cur, double nn_ratio) cons
                                 std::to_string(cur.id) + " both need a bag of words");
   const map::Features& fk = kf.f();
   const map::Features& fc = cur.f();
-  const vocab::FeatureVector& vk = kf.bow()->nodes;
-  const vocab::FeatureVector& vc = cur.bow->nodes;
   RotationHistogram hist(o_.histogram_bins);
   int n = 0;
-  // Walk both direct indices in node order; compare only under a shared node.
-  auto ik = vk.begin();
-  auto ic = vc.begin();
-  while (ik != vk.end() && ic != vc.end()) {
-    if (ik->first < ic->first) {
-      ik = vk.lower_bound(ic->first);
-      continue;
-    }
-    if (ic->first < ik->first) {
-      ic = vc.lower_bound(ik->first);
-      continue;
-    }
-    for (const unsigned i : ik->second) {
+  for_each_shared_node(kf.bow()->nodes, cur.bow->nodes, [&](const auto& node_k, const auto& node_c) {
+    for (const unsigned i : node_k) {
       const auto& p = kf.point(static_cast<int>(i));
       if (!p || p->erased()) continue;
       int best = INT_MAX, second = INT_MAX, best_j = -1;
-      for (const unsigned j : ic->second) {
+      for (const unsigned j : node_c) {
         if (cur.points[j]) continue;
         const int d = hamming(fk.descriptor(static_cast<int>(i)), fc.descriptor(static_cast<int>(j)));
         if (d < best) {
@@ -197,9 +203,7 @@ int Matcher::search_by_bow(const KeyFrame& kf, Frame& cur, double nn_ratio) cons
       ++n;
       if (o_.check_orientation) hist.add(best_j, fk.keys_un[i].angle, fc.keys_un[best_j].angle);
     }
-    ++ik;
-    ++ic;
-  }
+  });
   if (o_.check_orientation) drop_rejected(cur, hist, n);
   return n;
 }
@@ -298,21 +302,9 @@ std::vector<std::pair<int, int>> Matcher::search_for_triangulation(const KeyFram
   if (by_bow && kf1.bow() && kf2.bow()) {
     // ORB-SLAM's SearchForTriangulation: compare only keypoints under the
     // same vocabulary node (the direct index).
-    const vocab::FeatureVector& v1 = kf1.bow()->nodes;
-    const vocab::FeatureVector& v2 = kf2.bow()->nodes;
-    auto i1 = v1.begin();
-    auto i2 = v2.begin();
-    while (i1 != v1.end() && i2 != v2.end()) {
-      if (i1->first < i2->first) {
-        i1 = v1.lower_bound(i2->first);
-      } else if (i2->first < i1->first) {
-        i2 = v2.lower_bound(i1->first);
-      } else {
-        for (const unsigned i : i1->second) match_one(static_cast<int>(i), i2->second);
-        ++i1;
-        ++i2;
-      }
-    }
+    for_each_shared_node(kf1.bow()->nodes, kf2.bow()->nodes, [&](const auto& node1, const auto& node2) {
+      for (const unsigned i : node1) match_one(static_cast<int>(i), node2);
+    });
   } else {
     std::vector<int> all2(f2.size());
     for (int j = 0; j < f2.size(); ++j) all2[j] = j;
