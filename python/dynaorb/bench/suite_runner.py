@@ -68,6 +68,13 @@ def _reused(out: pathlib.Path, spec_name: str, spec: dict, resume: bool) -> dict
         return None
 
 
+def _start(out: pathlib.Path, spec_name: str, spec: dict) -> None:
+    """A run about to be made: its spec written, an older record of the folder dropped."""
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "record.json").unlink(missing_ok=True)
+    (out / spec_name).write_text(json.dumps(spec, indent=1))
+
+
 def _keep(out: pathlib.Path, record: dict) -> dict:
     (out / "record.json").write_text(json.dumps(record, indent=1))
     return record
@@ -87,8 +94,7 @@ def _ours_record(case: Case, run: int, out: pathlib.Path, opts: BenchOptions) ->
     reused = _reused(out, "spec.json", spec, opts.resume)
     if reused is not None:
         return reused
-    (out / "record.json").unlink(missing_ok=True)
-    (out / "spec.json").write_text(json.dumps(spec, indent=1))
+    _start(out, "spec.json", spec)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in [str(pathlib.Path(__file__).resolve().parents[2]),
                                                                 os.environ.get("PYTHONPATH", "")] if p))
     child = run_child([sys.executable, "-m", "dynaorb.bench.child", str(out / "spec.json")], out / "run.log",
@@ -157,9 +163,7 @@ def _peer_records(seq: Sequence, runs: int, root: pathlib.Path, python, vocabula
         if reused is not None:
             records.append(reused)
             continue
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "record.json").unlink(missing_ok=True)
-        (out / "peer_spec.json").write_text(json.dumps(spec, indent=1))
+        _start(out, "peer_spec.json", spec)
         try:
             stats = orbslam3.run(orbslam3.PeerCase(seq.kind, seq.path, seq.sensor, out), python, vocabulary,
                                  timeout_s)
