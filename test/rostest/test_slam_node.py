@@ -142,12 +142,16 @@ class SlamNodeTest(unittest.TestCase):
         cls.frames = cls.bag_topics[image_topic]
         play = [t for t in cls.bag_topics if p("play_labels", True) or not t.endswith("/labels")]
         cls._wait_for_subscriber(image_topic, 90.0)
+        # Only topics somebody reads, and only once each reader is connected
+        # (--wait-for-subscribers): a fixed delay lost the first frame on a loaded machine.
+        play = cls._subscribed_topics(play, settle=1.0)
         if cls.labels_mode == "server":  # its model loaded (it sets ~movable_ids then)
             deadline = time.time() + 90.0
             while not rospy.has_param("/segmentation_server/movable_ids") and time.time() < deadline:
                 time.sleep(0.2)
         t0 = time.time()
-        subprocess.run(["rosbag", "play", "--clock", "-q", "-d", "1", str(cls.bag), "--topics", *play],
+        subprocess.run(["rosbag", "play", "--clock", "-q", "-d", "1", "--wait-for-subscribers", str(cls.bag),
+                        "--topics", *play],
                        check=True, stdout=subprocess.DEVNULL, timeout=300)
         cls.play_s = time.time() - t0
         # Frames still queued in the node, then the octomap's last cloud.
@@ -185,6 +189,20 @@ class SlamNodeTest(unittest.TestCase):
                     return
             time.sleep(0.2)
         raise AssertionError(f"dynaorb_node never subscribed to {topic}")
+
+    @staticmethod
+    def _subscribed_topics(topics, settle: float):
+        """Those of `topics` with a subscriber, once that set has not changed for `settle` s."""
+        master = rosgraph.Master(rospy.get_name())
+        last, since = None, time.time()
+        while True:
+            _, subscribers, _ = master.getSystemState()
+            now = sorted(t for t in topics if any(name == t for name, _ in subscribers))
+            if now != last:
+                last, since = now, time.time()
+            elif time.time() - since >= settle:
+                return now
+            time.sleep(0.1)
 
     @classmethod
     def _wait_quiet(cls, done, quiet: float, timeout: float) -> None:
