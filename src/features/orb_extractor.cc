@@ -114,19 +114,7 @@ OrbExtractor::OrbExtractor(const ExtractorSettings& settings) : settings_(settin
     inv_sigma2_[i] = static_cast<float>(1.0 / (sc * sc));
   }
 
-  // Budget per level: a geometric series with ratio 1/s (the area of a level
-  // shrinks with s^2, ORB-SLAM2 uses 1/s), summing to n_features; the last
-  // level gets the remainder.
-  features_per_level_.resize(L);
-  const double f = 1.0 / s.scale_factor;
-  double per_level = s.n_features * (1 - f) / (1 - std::pow(f, L));
-  int sum = 0;
-  for (int i = 0; i < L - 1; ++i) {
-    features_per_level_[i] = cvRound(per_level);
-    sum += features_per_level_[i];
-    per_level *= f;
-  }
-  features_per_level_[L - 1] = std::max(s.n_features - sum, 0);
+  set_n_features(s.n_features);
 
   // umax[v]: half width of the circular patch at row v, made symmetric under
   // transposition so that the disc is the same in x and y.
@@ -140,6 +128,25 @@ OrbExtractor::OrbExtractor(const ExtractorSettings& settings) : settings_(settin
     umax_[v] = v0;
     ++v0;
   }
+}
+
+void OrbExtractor::set_n_features(int n) {
+  if (n < 1) throw std::invalid_argument("OrbExtractor: n_features must be >= 1");
+  settings_.n_features = n;
+  // Budget per level: a geometric series with ratio 1/s (the area of a level
+  // shrinks with s^2, ORB-SLAM2 uses 1/s), summing to n_features; the last
+  // level gets the remainder.
+  const int L = settings_.n_levels;
+  features_per_level_.resize(L);
+  const double f = 1.0 / settings_.scale_factor;
+  double per_level = n * (1 - f) / (1 - std::pow(f, L));
+  int sum = 0;
+  for (int i = 0; i < L - 1; ++i) {
+    features_per_level_[i] = cvRound(per_level);
+    sum += features_per_level_[i];
+    per_level *= f;
+  }
+  features_per_level_[L - 1] = std::max(n - sum, 0);
 }
 
 void OrbExtractor::extract(const cv::Mat& image, const cv::Mat& exclude,

@@ -306,6 +306,7 @@ PYBIND11_MODULE(_core, m) {
       .def_readwrite("reset_if_lost_below_keyframes", &tracking::TrackerOptions::reset_if_lost_below_keyframes)
       .def_readwrite("reset_after_lost", &tracking::TrackerOptions::reset_after_lost)
       .def_readwrite("mono_init_feature_factor", &tracking::TrackerOptions::mono_init_feature_factor)
+      .def_readwrite("stereo_right_budget_max_factor", &tracking::TrackerOptions::stereo_right_budget_max_factor)
       .def_readwrite("mono_init_feature_frames", &tracking::TrackerOptions::mono_init_feature_frames)
       .def_readwrite("mono_init_min_keypoints", &tracking::TrackerOptions::mono_init_min_keypoints)
       .def_readwrite("mono_init_window", &tracking::TrackerOptions::mono_init_window)

@@ -1,6 +1,7 @@
 #include "dynaorb/tracking/frame_builder.h"
 
 #include <algorithm>
+#include <cmath>
 #include <chrono>
 #include <future>
 #include <opencv2/calib3d.hpp>
@@ -18,9 +19,22 @@ ExtractorSettings scaled(ExtractorSettings s, int factor) {
 }  // namespace
 
 FrameBuilder::FrameBuilder(const Settings& settings, std::shared_ptr<const map::Calibration> calib,
-                           int init_feature_factor)
+                           int init_feature_factor, double right_budget_max_factor)
     : calib_(std::move(calib)), left_(settings.extractor), right_(settings.extractor),
-      init_(scaled(settings.extractor, init_feature_factor)) {}
+      init_(scaled(settings.extractor, init_feature_factor)), n_features_(settings.extractor.n_features),
+      right_budget_max_factor_(std::max(right_budget_max_factor, 1.0)) {}
+
+int FrameBuilder::right_budget(const cv::Mat& exclude) const {
+  // The left budget goes to the pixels the mask leaves (OrbExtractor), so
+  // there the left keypoints are 1 / (1 - m) times denser than without a
+  // mask, while the right image, unmasked, spends a fraction m of its budget
+  // on the excluded objects. Keeping the two densities equal on the rest of
+  // the image keeps the share of left keypoints that find a right match.
+  if (exclude.empty() || right_budget_max_factor_ <= 1.0) return n_features_;
+  const double m = static_cast<double>(cv::countNonZero(exclude)) / static_cast<double>(exclude.total());
+  const double factor = std::min(1.0 / std::max(1.0 - m, 1e-6), right_budget_max_factor_);
+  return static_cast<int>(std::lround(n_features_ * factor));
+}
 
 std::shared_ptr<map::Features> FrameBuilder::extract(features::OrbExtractor& extractor,
                                                      const cv::Mat& grey, const cv::Mat& exclude,
@@ -63,6 +77,7 @@ std::shared_ptr<const map::Features> FrameBuilder::stereo(const cv::Mat& left, c
   std::vector<cv::KeyPoint> keys_r;
   cv::Mat desc_r;
   // The right image is extracted on a second thread while this one does the left.
+  right_.set_n_features(right_budget(exclude));
   const auto t0 = Clock::now();
   auto right_job = std::async(std::launch::async, [&] { right_.extract(right, cv::Mat(), keys_r, desc_r); });
   left_.extract(left, exclude, f->keys, f->descriptors, count);

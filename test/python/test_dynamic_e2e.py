@@ -157,11 +157,13 @@ def test_full_within_1_2x_of_static_and_off_3x_worse(tmp_path, synth_seeds, sens
     print(f"{sensor}: full/static median {full_median:.2f}, off/static median {off_median:.2f}")
     # Measured, full / static for seeds 0 / 1 / 2 (median); static ATE 2.1-5.5 mm:
     #   RGB-D  1.05 / 1.29 / 1.22 (1.22): the 1.2x target is just missed
-    #   stereo 1.20 / 1.57 / 1.28 (1.28): missed
+    #   stereo 1.09 / 1.48 / 0.94 (1.09); 1.20 / 1.57 / 1.28 (1.28) before the
+    #          right image's budget followed the mask (stereo_right_budget_max_factor);
+    #          over seeds 0-12 the median went 1.26 -> 1.11
     #   mono   1.24 / 1.07 / 1.00 (1.07), 53-56 of 60 frames tracked (static: 55-56)
     # Where the target is missed, the bound is a regression bound.
     # off / static median: RGB-D 152, stereo 65, mono 8.3.
-    assert full_median <= {"rgbd": 1.3, "stereo": 1.45, "mono": 1.2}[sensor]
+    assert full_median <= {"rgbd": 1.3, "stereo": 1.2, "mono": 1.2}[sensor]
     assert off_median >= 3
 
 

@@ -73,9 +73,13 @@ def test_synthetic_rgbd_static_masked_and_unmasked(tmp_path, synth_seeds):
 
 def test_synthetic_stereo_static_masked_and_unmasked(tmp_path, synth_seeds):
     static, ratio, unmasked = _synth_runs(tmp_path, synth_seeds, "stereo")
-    # Measured: static 0.0030 / 0.0032 / 0.0033 m; movers + masks 1.44 / 1.51 /
-    # 1.03x, median 1.44: the 1.2x is not met (the masks take 20-40 %
-    # of the texture away); a regression bound. Movers without masks (seed 0) 0.0105 m.
+    # Measured: static 0.0030 / 0.0032 / 0.0033 m; movers + masks 1.42 / 1.33 /
+    # 0.95x, median 1.33 (1.44 / 1.51 / 1.03 before the right image's budget
+    # followed the mask, TrackerOptions::stereo_right_budget_max_factor). Over
+    # seeds 0-12 the median is 1.16 (1.20 before), mean masked ATE 3.8 mm
+    # against 4.3; seeds 0 and 1 stay the worst. The 1.2x is not met on
+    # these three (the masks take 30-40 % of the texture away, the near walls
+    # most); a regression bound. Movers without masks (seed 0) 0.0105 m.
     assert max(static) <= 0.01
-    assert ratio <= 1.5
+    assert ratio <= 1.4
     assert unmasked["ate"]["rmse"] >= 1.5 * static[0]

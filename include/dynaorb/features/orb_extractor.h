@@ -36,6 +36,11 @@ class OrbExtractor {
   void extract(const cv::Mat& image, const cv::Mat& exclude, std::vector<cv::KeyPoint>& keypoints,
                cv::Mat& descriptors, ExcludedCount* count = nullptr);
 
+  // The keypoint budget of later extractions (nFeatures), spread over the
+  // levels as at construction.
+  void set_n_features(int n);
+  int n_features() const { return settings_.n_features; }
+
   // The pyramid of the last extracted image (level 0 = the image itself).
   const std::vector<cv::Mat>& pyramid() const { return pyramid_; }
 

@@ -18,8 +18,12 @@ class FrameBuilder {
  public:
   // init_feature_factor: the monocular initialisation extracts this many
   // times nFeatures (ORB-SLAM2: 2, ORB-SLAM3: 5; see TrackerOptions).
+  // right_budget_max_factor: with an exclusion mask covering a fraction m of
+  // the left image, the right image is extracted with nFeatures / (1 - m)
+  // keypoints, at most this many times nFeatures (1: always nFeatures; see
+  // TrackerOptions::stereo_right_budget_max_factor).
   FrameBuilder(const Settings& settings, std::shared_ptr<const map::Calibration> calib,
-               int init_feature_factor = 2);
+               int init_feature_factor = 2, double right_budget_max_factor = 1.0);
 
   // grey: CV_8UC1 tracked image; exclude: empty or CV_8UC1, non-zero pixels
   // get no keypoints. depth: CV_32F metres, 0 = no measurement.
@@ -42,9 +46,12 @@ class FrameBuilder {
   std::shared_ptr<map::Features> extract(features::OrbExtractor& extractor, const cv::Mat& grey,
                                          const cv::Mat& exclude, StageTimes& t, features::ExcludedCount* count);
   void finish(map::Features& f) const;  // undistortion and grid
+  int right_budget(const cv::Mat& exclude) const;
 
   std::shared_ptr<const map::Calibration> calib_;
   features::OrbExtractor left_, right_, init_;
+  int n_features_;
+  double right_budget_max_factor_;
 };
 
 }  // namespace dynaorb::tracking
