@@ -39,7 +39,6 @@ class OrbExtractor {
   // The keypoint budget of later extractions (nFeatures), spread over the
   // levels as at construction.
   void set_n_features(int n);
-  int n_features() const { return settings_.n_features; }
 
   // The pyramid of the last extracted image (level 0 = the image itself).
   const std::vector<cv::Mat>& pyramid() const { return pyramid_; }
