@@ -30,7 +30,8 @@ int FrameBuilder::right_budget(const cv::Mat& exclude) const {
   // mask, while the right image, unmasked, spends a fraction m of its budget
   // on the excluded objects. Keeping the two densities equal on the rest of
   // the image keeps the share of left keypoints that find a right match.
-  if (exclude.empty() || right_budget_max_factor_ <= 1.0) return n_features_;
+  // A mask of the wrong type is refused by the left extraction, with its message.
+  if (exclude.empty() || exclude.type() != CV_8UC1 || right_budget_max_factor_ <= 1.0) return n_features_;
   const double m = static_cast<double>(cv::countNonZero(exclude)) / static_cast<double>(exclude.total());
   const double factor = std::min(1.0 / std::max(1.0 - m, 1e-6), right_budget_max_factor_);
   return static_cast<int>(std::lround(n_features_ * factor));

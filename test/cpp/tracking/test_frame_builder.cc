@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <memory>
+#include <stdexcept>
+#include <string>
 #include <opencv2/core.hpp>
 
 #include "../test_util.h"
@@ -55,6 +57,27 @@ TEST(FrameBuilder, RightBudgetFollowsTheExclusionMask) {
   EXPECT_EQ(fixed.keypoints, follows.keypoints);
   EXPECT_GT(share(follows), share(fixed) + 0.03);
   EXPECT_GT(share(follows), share(plain) - 0.05);
+}
+
+// A mask of the wrong type or size is refused with the extractor's message,
+// not an OpenCV assertion from the budget.
+TEST(FrameBuilder, RefusesABadExclusionMask) {
+  DYNAORB_REQUIRE_SHARED();
+  auto provider = open_dataset("kitti", (test::shared_data() / "kitti/sequences/06").string());
+  const Settings settings = provider->default_settings();
+  const dynaorb::Frame f = provider->load(0);
+  tracking::FrameBuilder builder(
+      settings, map::Calibration::make(settings, Sensor::kStereo, f.image.cols, f.image.rows), 2, 2.0);
+  tracking::StageTimes t;
+  for (const cv::Mat& bad : {cv::Mat(f.image.size(), CV_8UC3, cv::Scalar::all(255)),
+                             cv::Mat(f.image.rows / 2, f.image.cols, CV_8UC1, cv::Scalar(255))}) {
+    try {
+      builder.stereo(f.image, f.right, bad, t);
+      ADD_FAILURE() << "accepted a " << bad.cols << "x" << bad.rows << " mask of type " << bad.type();
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("exclude mask"), std::string::npos) << e.what();
+    }
+  }
 }
 
 }  // namespace
