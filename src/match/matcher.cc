@@ -24,24 +24,6 @@ bool slot_taken(const Frame& f, int i) {
   return p && !p->erased() && p->observation_count() > 0;
 }
 
-// Walks two direct indices in node order and calls fn(features of a, features
-// of b) for each node both have (matching compares only under a shared node).
-template <typename Fn>
-void for_each_shared_node(const vocab::FeatureVector& a, const vocab::FeatureVector& b, Fn&& fn) {
-  auto ia = a.begin();
-  auto ib = b.begin();
-  while (ia != a.end() && ib != b.end()) {
-    if (ia->first < ib->first) {
-      ia = a.lower_bound(ib->first);
-    } else if (ib->first < ia->first) {
-      ib = b.lower_bound(ia->first);
-    } else {
-      fn(ia->second, ib->second);
-      ++ia;
-      ++ib;
-    }
-  }
-}
 
 void drop_rejected(Frame& cur, const RotationHistogram& h, int& n) {
   for (int i : h.rejected()) {
@@ -181,7 +163,7 @@ int Matcher::search_by_bow(const KeyFrame& kf, Frame& cur, double nn_ratio) cons
   const map::Features& fc = cur.f();
   RotationHistogram hist(o_.histogram_bins);
   int n = 0;
-  for_each_shared_node(kf.bow()->nodes, cur.bow->nodes, [&](const auto& node_k, const auto& node_c) {
+  vocab::for_each_shared_key(kf.bow()->nodes, cur.bow->nodes, [&](const auto& node_k, const auto& node_c) {
     for (const unsigned i : node_k) {
       const auto& p = kf.point(static_cast<int>(i));
       if (!p || p->erased()) continue;
@@ -302,7 +284,7 @@ std::vector<std::pair<int, int>> Matcher::search_for_triangulation(const KeyFram
   if (by_bow && kf1.bow() && kf2.bow()) {
     // ORB-SLAM's SearchForTriangulation: compare only keypoints under the
     // same vocabulary node (the direct index).
-    for_each_shared_node(kf1.bow()->nodes, kf2.bow()->nodes, [&](const auto& node1, const auto& node2) {
+    vocab::for_each_shared_key(kf1.bow()->nodes, kf2.bow()->nodes, [&](const auto& node1, const auto& node2) {
       for (const unsigned i : node1) match_one(static_cast<int>(i), node2);
     });
   } else {

@@ -36,18 +36,10 @@ double score_l1(const BowVector& a, const BowVector& b) {
   // 1 - 0.5 * sum_i |a_i - b_i| over normalised vectors equals
   // 0.5 * sum over shared words of |a_i| + |b_i| - |a_i - b_i|.
   double s = 0.0;
-  auto ia = a.begin(), ib = b.begin();
-  while (ia != a.end() && ib != b.end()) {
-    if (ia->first < ib->first) {
-      ia = a.lower_bound(ib->first);
-    } else if (ib->first < ia->first) {
-      ib = b.lower_bound(ia->first);
-    } else {
-      const double x = ia->second / na, y = ib->second / nb;
-      s += std::fabs(x) + std::fabs(y) - std::fabs(x - y);
-      ++ia, ++ib;
-    }
-  }
+  for_each_shared_key(a, b, [&](double wa, double wb) {
+    const double x = wa / na, y = wb / nb;
+    s += std::fabs(x) + std::fabs(y) - std::fabs(x - y);
+  });
   return std::clamp(0.5 * s, 0.0, 1.0);
 }
 

@@ -29,6 +29,26 @@ class FeatureVector : public std::map<NodeId, std::vector<unsigned>> {
   void add_feature(NodeId node, unsigned feature) { (*this)[node].push_back(feature); }
 };
 
+// Walks two sorted maps (BowVector or FeatureVector) in key order and calls
+// fn(value in a, value in b) for each key both hold, skipping ahead with
+// lower_bound (what the L1 score and direct-index matching both need).
+template <typename Map, typename Fn>
+void for_each_shared_key(const Map& a, const Map& b, Fn&& fn) {
+  auto ia = a.begin();
+  auto ib = b.begin();
+  while (ia != a.end() && ib != b.end()) {
+    if (ia->first < ib->first) {
+      ia = a.lower_bound(ib->first);
+    } else if (ib->first < ia->first) {
+      ib = b.lower_bound(ia->first);
+    } else {
+      fn(ia->second, ib->second);
+      ++ia;
+      ++ib;
+    }
+  }
+}
+
 // DBoW2's L1 score, 1 - 0.5 * | a/|a| - b/|b| |_1, in [0, 1]: 1 for vectors
 // with the same direction, 0 when no word is shared (or either is empty).
 double score_l1(const BowVector& a, const BowVector& b);
