@@ -31,6 +31,7 @@ void MotionCueOptions::read(const cv::FileNode& node) {
   read_option(node, "lk_epsilon", lk_epsilon);
   read_option(node, "forward_backward_max", forward_backward_max);
   read_option(node, "forward_backward_max_rgbd", forward_backward_max_rgbd);
+  read_option(node, "stereo_depth_forward_backward_max", stereo_depth_forward_backward_max);
   read_option(node, "border", border);
   read_option(node, "depth_edge_radius", depth_edge_radius);
   read_option(node, "depth_edge_max_ratio", depth_edge_max_ratio);
@@ -216,7 +217,8 @@ std::vector<float> stereo_depths(const std::vector<cv::Mat>& left_pyramid, const
   const auto on_row = [&](size_t i, const cv::Point2f& r) {
     return std::abs(r.y - points[i].y) <= 1.0 && points[i].x - r.x > 0;
   };
-  const Flow stereo = track_forward_backward(left_pyramid, right_pyramid, points, o, o.forward_backward_max, on_row);
+  const Flow stereo = track_forward_backward(left_pyramid, right_pyramid, points, o,
+                                             o.stereo_depth_forward_backward_max, on_row);
   for (size_t i = 0; i < points.size(); ++i) {
     if (!stereo.ok[i]) continue;
     const cv::Point2f& r = stereo.to[i];

@@ -47,6 +47,10 @@ struct MotionCueOptions {
   // `forward_backward_max_rgbd` for RGB-D frames when >= 0 (else the first).
   double forward_backward_max = 1.0;  // px
   double forward_backward_max_rgbd = -1;
+  // The same check for a corner's stereo match (LK along the row into the
+  // right image, stereo_depths): ours, kept apart from the flow's, so the
+  // flow can go without it while the depths keep it. <= 0: none.
+  double stereo_depth_forward_backward_max = 1.0;  // px
   // STDyn-SLAM Sec. III-A: "the Harris points pair is discarded if at least one
   // of the points is on the edge corner or close to it" (no value in the paper;
   // 10 px is ours).
@@ -104,9 +108,9 @@ struct MotionCueCache {
 std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOptions& o);
 
 // Depth (calib.bf / disparity) of each of `points` of a rectified left
-// image by forward-backward LK into the right one (pyramids of the same
-// window and levels); 0 where the match fails, leaves the row by more
-// than 1 px or has no positive disparity.
+// image by LK into the right one and back (stereo_depth_forward_backward_max;
+// pyramids of the same window and levels); 0 where the match fails, leaves
+// the row by more than 1 px or has no positive disparity.
 std::vector<float> stereo_depths(const std::vector<cv::Mat>& left_pyramid, const std::vector<cv::Mat>& right_pyramid,
                                  const std::vector<cv::Point2f>& points, double bf, const MotionCueOptions& o);
 

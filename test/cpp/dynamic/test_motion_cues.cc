@@ -209,6 +209,38 @@ TEST(MotionCues, BackwardCheckOnlyRemovesTracks) {
   }
 }
 
+// The stereo depths' own backward check (stereo_depth_forward_backward_max)
+// leaves the flow alone: the same tracks, and without it every depth the
+// check kept is kept, the same, and more are found (still true depths).
+TEST(MotionCues, StereoDepthBackwardCheckOnlyRemovesDepths) {
+  auto calib = make_calibration(Sensor::kStereo);
+  Pair p = render_pair(*calib, Sensor::kStereo);
+  const MotionCueOptions checked;
+  MotionCueOptions unchecked;
+  unchecked.stereo_depth_forward_backward_max = 0;
+  const auto a = track_points(p.prev, p.cur, *calib, Sensor::kStereo, checked);
+  const auto b = track_points(p.prev, p.cur, *calib, Sensor::kStereo, unchecked);
+  ASSERT_GT(a.size(), 300u);
+  ASSERT_EQ(a.size(), b.size());
+  size_t with_depth_a = 0, with_depth_b = 0;
+  std::vector<double> rel;
+  for (size_t i = 0; i < a.size(); ++i) {
+    ASSERT_EQ(a[i].prev, b[i].prev);
+    ASSERT_EQ(a[i].cur, b[i].cur);
+    if (a[i].prev_depth > 0) {
+      ++with_depth_a;
+      EXPECT_EQ(b[i].prev_depth, a[i].prev_depth);
+    }
+    if (b[i].prev_depth > 0) {
+      ++with_depth_b;
+      const float z = p.prev_view.depth.at<float>(cvRound(b[i].prev.y), cvRound(b[i].prev.x));
+      rel.push_back(std::abs(b[i].prev_depth - z) / z);
+    }
+  }
+  EXPECT_GT(with_depth_b, with_depth_a);
+  EXPECT_LT(median(rel), 0.02);
+}
+
 // The cache only saves work: the previous image's pyramid kept from the last
 // call, its corners (and for stereo their depths) found ahead on another
 // thread; the points are the
@@ -405,7 +437,7 @@ TEST(MotionCues, DegenerateInputGivesNothingAndNeverThrows) {
 TEST(MotionCues, OptionsReadFromYaml) {
   cv::FileStorage fs(
       "%YAML:1.0\nmotion:\n  max_corners: 500\n  use_harris: 0\n  border: 5\n  forward_backward_max: 0.5\n"
-      "  forward_backward_max_rgbd: 0\n"
+      "  forward_backward_max_rgbd: 0\n  stereo_depth_forward_backward_max: 0.25\n"
       "bad:\n  max_corners: many\n",
       cv::FileStorage::READ | cv::FileStorage::MEMORY);
   MotionCueOptions o;
@@ -415,6 +447,7 @@ TEST(MotionCues, OptionsReadFromYaml) {
   EXPECT_EQ(o.border, 5);
   EXPECT_DOUBLE_EQ(o.forward_backward_max, 0.5);
   EXPECT_DOUBLE_EQ(o.forward_backward_max_rgbd, 0);
+  EXPECT_DOUBLE_EQ(o.stereo_depth_forward_backward_max, 0.25);
   EXPECT_DOUBLE_EQ(o.quality_level, 0.01);  // missing: default kept
   EXPECT_EQ(o.min_ego_points, 12);
   MotionCueOptions b;
