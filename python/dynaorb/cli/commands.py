@@ -15,7 +15,7 @@ def cmd_run(args) -> int:
                                    segment=args.segment, segment_mode=args.segment_mode,
                                    segment_threads=args.segment_threads, max_mask_age=args.max_mask_age,
                                    progress=not args.quiet,
-                                   synchronous_mapping=not args.async_mapping,
+                                   synchronous_mapping=not args.async_mapping, realtime=args.realtime,
                                    save_map=args.save_map,
                                    load_map=args.load_map, localization=args.localization,
                                    tracker=key_values(args.tracker, "--tracker")))

@@ -49,6 +49,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--async-mapping", action="store_true",
                    help="run local mapping concurrently as on a live camera (default: each keyframe is "
                         "mapped before the next frame, which makes runs repeatable)")
+    r.add_argument("--realtime", type=float, nargs="?", const=1.0, default=0.0, metavar="RATE",
+                   help="deliver the frames at RATE x the recording's rate (by their stamps; default 1 when "
+                        "given), as a live camera would; with --async-mapping this gives local mapping the "
+                        "time between frames that a camera gives it (default: as fast as tracking goes)")
     r.add_argument("--save-map", metavar="OUT.map", help="write the map to this file after the run")
     r.add_argument("--load-map", metavar="IN.map",
                    help="start from a saved map (the first frame is relocalised in it; needs a vocabulary)")

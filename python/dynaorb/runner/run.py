@@ -28,6 +28,7 @@ import numpy as np
 from dynaorb import core
 from dynaorb.runner.frames import readable_frames
 from dynaorb.runner.masks import LabelFolder, MaskFolder
+from dynaorb.runner.pacing import Pacer
 from dynaorb.segmentation.labels import PASCAL_VOC_MOVABLE
 
 log = logging.getLogger(__name__)
@@ -89,6 +90,11 @@ class RunOptions:
     # Map each keyframe before tracking the next frame: repeatable runs. False
     # runs local mapping concurrently, as a live camera would.
     synchronous_mapping: bool = True
+    # Deliver the frames at this multiple of the recording's rate (their
+    # stamps), as a live camera or `rosbag play` would; 0: as fast as tracking
+    # takes them. What a concurrent local mapping (synchronous_mapping False)
+    # gets on a live camera: the time between frames (see runner/pacing.py).
+    realtime: float = 0.0
     save_map: str | None = None     # the map written here after the run
     load_map: str | None = None     # start from this saved map (needs a vocabulary)
     localization: bool = False      # localisation only: no new keyframes or map points
@@ -288,6 +294,7 @@ def _label_mask(labels, movable: np.ndarray):
 
 
 def _run(_core, opts: RunOptions, segmenter, semantic, tracker) -> dict:
+    pacer = Pacer(opts.realtime) if opts.realtime else None  # a bad rate refused before any work
     provider = opts.provider if opts.provider is not None else _core.open_dataset(opts.kind, opts.path, opts.sensor)
     for w in provider.warnings:
         log.warning("%s: %s", opts.path, w)
@@ -360,6 +367,8 @@ def _run(_core, opts: RunOptions, segmenter, semantic, tracker) -> dict:
                 labels = frame.labels
             else:
                 mask = _label_mask(frame.labels, movable)
+        if pacer is not None:
+            pacer.wait(frame.stamp)
         t0 = time.perf_counter()
         result = _track(_core, system, frame, mask, labels)
         track_call_ms.append(1000.0 * (time.perf_counter() - t0))
@@ -431,6 +440,7 @@ def _run(_core, opts: RunOptions, segmenter, semantic, tracker) -> dict:
         "initializations": int(counters["initializations"]),
         "map": system.map_summary(),
         "synchronous_mapping": opts.synchronous_mapping,
+        "realtime": pacer.summary() if pacer is not None else None,
         "tracker_options": dict(opts.tracker or {}),
         "localization": opts.localization,
         "map_file": map_io or None,
