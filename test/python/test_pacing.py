@@ -44,6 +44,9 @@ def test_stamps_that_cannot_be_paced_are_counted_not_waited_on():
     p.wait(4.0)              # before the first stamp
     p.wait(math.inf)
     assert clock.sleeps == [] and p.unpaced_frames == 3 and p.frames == 4
+    p.wait(5.5)
+    p.wait(5.2)              # before the last one paced: not counted as late
+    assert p.unpaced_frames == 4 and p.late_frames == 0 and clock.sleeps == [pytest.approx(0.5)]
 
 
 @pytest.mark.parametrize("rate", [0.0, -1.0, math.nan, math.inf])

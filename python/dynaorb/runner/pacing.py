@@ -23,10 +23,11 @@ class Pacer:
         self._clock = clock
         self._sleep = sleep
         self._origin = None  # (first stamp, clock then)
+        self._last = -math.inf  # the latest stamp paced
         self.frames = 0
         self.late_frames = 0      # handed over after their due time (tracking fell behind)
         self.max_late_ms = 0.0
-        self.unpaced_frames = 0   # stamps that cannot be paced (not finite, or before the first)
+        self.unpaced_frames = 0   # stamps that cannot be paced (not finite, or before an earlier one)
         self.waited_s = 0.0
 
     def wait(self, stamp: float) -> None:
@@ -38,11 +39,13 @@ class Pacer:
             return
         if self._origin is None:
             self._origin = (stamp, now)
+            self._last = stamp
             return
-        offset = stamp - self._origin[0]
-        if offset < 0:
+        if stamp < self._last:  # out of order: no due time of its own
             self.unpaced_frames += 1
             return
+        self._last = stamp
+        offset = stamp - self._origin[0]
         due = self._origin[1] + offset / self.rate
         if now >= due:
             late_ms = 1000.0 * (now - due)
