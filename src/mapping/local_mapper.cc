@@ -45,6 +45,13 @@ size_t LocalMapper::queued() const {
 
 bool LocalMapper::has_new_keyframes() const { return queued() > 0; }
 
+bool LocalMapper::begin_local_ba() {
+  std::lock_guard<std::mutex> lk(queue_mutex_);
+  if (stop_ || pause_requests_ > 0 || !queue_.empty() || generation_ != clears_) return false;
+  abort_ba_ = false;
+  return true;
+}
+
 void LocalMapper::wait_idle() {
   std::unique_lock<std::mutex> lk(queue_mutex_);
   idle_cv_.wait(lk, [this] { return stop_ || (!busy_ && queue_.empty()); });
@@ -74,6 +81,7 @@ void LocalMapper::clear_queue() {
   {
     std::lock_guard<std::mutex> lk(queue_mutex_);
     queue_.clear();
+    ++clears_;
   }
   abort_ba_ = true;
   wait_idle();
@@ -103,7 +111,7 @@ void LocalMapper::run() {
       kf = queue_.front();
       queue_.pop_front();
       busy_ = true;
-      abort_ba_ = false;
+      generation_ = clears_;
     }
     StageTimes t;
     const auto t0 = Clock::now();
@@ -154,7 +162,7 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& kf, StageTimes& t) {
     }
     t["fuse"] = ms_since(t0);
   }
-  if (!has_new_keyframes()) {
+  if (begin_local_ba()) {
     t0 = Clock::now();
     if (o_.local_ba) local_bundle_adjustment(*kf);
     t["local_ba"] = ms_since(t0);

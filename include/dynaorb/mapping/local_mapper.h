@@ -101,6 +101,14 @@ class LocalMapper {
   void local_bundle_adjustment(map::KeyFrame& kf);
   void cull_keyframes(map::KeyFrame& kf);
   bool has_new_keyframes() const;
+  // ORB-SLAM2's LocalMapping::Run: the local BA's abort flag is cleared just
+  // before the BA, not when the keyframe is taken, so an interrupt that came
+  // while the keyframe's points were being made (a monocular tracker wanting a
+  // keyframe) does not cost it its BA. False, with the flag left alone, when a
+  // keyframe is queued, a stop or pause is pending, or the queue was cleared
+  // (a reset) since this keyframe was taken: then neither the BA nor the
+  // keyframe culling runs.
+  bool begin_local_ba();
 
   map::Map& map_;
   const Sensor sensor_;
@@ -115,6 +123,8 @@ class LocalMapper {
   bool busy_ = false;
   bool stop_ = false;
   int pause_requests_ = 0;
+  unsigned long clears_ = 0;      // clear_queue calls
+  unsigned long generation_ = 0;  // clears_ when the keyframe in process was taken
   std::function<void(std::shared_ptr<map::KeyFrame>)> sink_;
   std::atomic<bool> abort_ba_{false};
   LocalMapperCounters counters_;
