@@ -274,18 +274,22 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
   Context ctx{sensor_, calib_, current, previous, cv::Mat::zeros(size, CV_8UC1), nullptr, nullptr,
               T_cw_predicted, &keyframes_};
   // This frame is the next one's previous frame: its corners are detected
-  // now, beside this frame's stages and SLAM's work on it. Only while the
-  // frames need the cues (a stage may decline them, e.g. DM without
-  // candidate regions): else the detection would take a core from this
-  // frame's stages for nothing. A frame that needs them after one that did
-  // not detects its previous frame's corners itself (the same corners).
-  if (calib_ && cues_last_frame_ &&
-      std::any_of(stages_.begin(), stages_.end(), [](const auto& s) { return s->needs_motion_cues(); }))
-    detect_corners_ahead(current, *calib_, sensor_, o_.motion_cues, motion_cue_cache_);
+  // now, beside this frame's stages and SLAM's work on it, once the stages
+  // before the first one using the cues (the semantic prior) have set its
+  // candidates, which the corner budget reads. Only while the frames need
+  // the cues (a stage may decline them, e.g. DM without candidate regions):
+  // else the detection would take a core from this frame's stages for
+  // nothing. A frame that needs them after one that did not detects its
+  // previous frame's corners itself (the same corners).
+  bool ahead_started = false;
   std::vector<TrackedPoint> tracked;
   EgoMotion ego;
   for (const auto& stage : stages_) {
     const std::string name = stage->name();
+    if (!ahead_started && stage->needs_motion_cues()) {
+      ahead_started = true;
+      if (calib_ && cues_last_frame_) detect_corners_ahead(current, *calib_, sensor_, o_.motion_cues, motion_cue_cache_);
+    }
     if (!res.motion_cues && stage->needs_motion_cues() && stage->needs_motion_cues_for(ctx)) {
       const auto t0 = Clock::now();
       if (previous && calib_) {

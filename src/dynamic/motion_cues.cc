@@ -24,6 +24,7 @@ void MotionCueOptions::read(const cv::FileNode& node) {
   read_option(node, "block_size", block_size);
   read_option(node, "use_harris", use_harris);
   read_option(node, "harris_k", harris_k);
+  read_option(node, "max_background_corners", max_background_corners);
   read_option(node, "subpix_window", subpix_window);
   read_option(node, "lk_window", lk_window);
   read_option(node, "lk_levels", lk_levels);
@@ -98,6 +99,46 @@ void refine_corners(const cv::Mat& grey, std::vector<cv::Point2f>& corners, int 
     cv::cornerSubPix(grey, part, cv::Size(half_window, half_window), cv::Size(-1, -1), crit);
     std::copy(part.begin(), part.end(), corners.begin() + begin);
   });
+}
+
+// At most `budget` of the corners outside `candidates`, spread over the
+// image: a grid of about `budget` square cells; each round takes the next
+// strongest corner of every cell (goodFeaturesToTrack returns them strongest
+// first) until the budget is spent. Corners inside the candidates all stay.
+// The order of the input is kept.
+std::vector<cv::Point2f> within_background_budget(const std::vector<cv::Point2f>& corners, const cv::Mat& candidates,
+                                                  const cv::Size& size, int budget) {
+  const bool have_mask = candidates.type() == CV_8UC1 && candidates.size() == size;
+  std::vector<size_t> background;
+  for (size_t i = 0; i < corners.size(); ++i)
+    if (!(have_mask && mask_at(candidates, corners[i]))) background.push_back(i);
+  if (budget <= 0 || static_cast<int>(background.size()) <= budget) return corners;
+  const double cell = std::max(1.0, std::sqrt(static_cast<double>(size.area()) / budget));
+  const int cols = std::max(1, static_cast<int>(std::ceil(size.width / cell)));
+  const int rows = std::max(1, static_cast<int>(std::ceil(size.height / cell)));
+  std::vector<std::vector<size_t>> cells(static_cast<size_t>(cols) * rows);
+  for (size_t i : background) {
+    const int cx = std::clamp(static_cast<int>(corners[i].x / cell), 0, cols - 1);
+    const int cy = std::clamp(static_cast<int>(corners[i].y / cell), 0, rows - 1);
+    cells[static_cast<size_t>(cy) * cols + cx].push_back(i);
+  }
+  std::vector<unsigned char> keep(corners.size(), 1);
+  for (size_t i : background) keep[i] = 0;
+  int left = budget;
+  for (size_t round = 0; left > 0; ++round) {
+    bool any = false;
+    for (const auto& c : cells) {
+      if (round >= c.size()) continue;
+      any = true;
+      keep[c[round]] = 1;
+      if (--left == 0) break;
+    }
+    if (!any) break;
+  }
+  std::vector<cv::Point2f> out;
+  for (size_t i = 0; i < corners.size(); ++i)
+    if (keep[i]) out.push_back(corners[i]);
+  return out;
 }
 
 // cornerSubPix can pull neighbouring corners onto the same point; a point
@@ -192,7 +233,7 @@ std::vector<cv::Point2f> undistorted(const std::vector<cv::Point2f>& px, const m
 
 }  // namespace
 
-std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOptions& o) {
+std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOptions& o, const cv::Mat& candidates) {
   std::vector<cv::Point2f> corners;
   const int border = std::max(o.border, 0);
   if (!is_grey(grey) || grey.cols <= 2 * border + 1 || grey.rows <= 2 * border + 1) return corners;
@@ -203,6 +244,7 @@ std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOpti
   cv::goodFeaturesToTrack(grey, corners, std::max(o.max_corners, 1), std::clamp(o.quality_level, 1e-6, 1.0),
                           std::max(o.min_distance, 0.0), detect_mask, std::max(o.block_size, 1), o.use_harris,
                           o.harris_k);
+  corners = within_background_budget(corners, candidates, grey.size(), o.max_background_corners);
   if (!corners.empty() && o.subpix_window > 0) {
     refine_corners(grey, corners, o.subpix_window);
     corners = without_duplicates(corners, std::max(1.0, o.min_distance / 2));
@@ -250,12 +292,13 @@ void detect_corners_ahead(const FrameData& frame, const map::Calibration& calib,
   cache.corners_image = std::move(cache.next_corners_image);
   cache.corners = std::move(cache.next_corners);
   const cv::Mat grey = frame.grey;
+  const cv::Mat candidates = frame.candidates;  // shares the buffer: the semantic stage makes a new one per frame
   const cv::Mat right = wants_stereo_depth(frame, calib, sensor) ? frame.right : cv::Mat();
   const double bf = calib.bf;
   cache.next_corners_image = grey;
-  cache.next_corners = std::async(std::launch::async, [grey, right, bf, o] {
+  cache.next_corners = std::async(std::launch::async, [grey, candidates, right, bf, o] {
                          AheadCorners a;
-                         a.corners = detect_corners(grey, o);
+                         a.corners = detect_corners(grey, o, candidates);
                          if (!right.empty() && !a.corners.empty())
                            a.right_depth = stereo_depths(lk_pyramid(grey, o), lk_pyramid(right, o), a.corners, bf, o);
                          return a;
@@ -278,7 +321,7 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
                        cache->corners_image.size() == size;
     AheadCorners detected;
     if (ahead) detected = cache->corners.get();
-    else detected.corners = detect_corners(prev.grey, o);
+    else detected.corners = detect_corners(prev.grey, o, prev.candidates);
     const std::vector<cv::Point2f>& corners = detected.corners;
     if (corners.empty()) return out;
     if (cache) cache->ms["corners"] = ms_since(t0);

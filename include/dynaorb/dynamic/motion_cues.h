@@ -26,6 +26,14 @@ struct MotionCueOptions {
   int block_size = 3;
   bool use_harris = true;
   double harris_k = 0.04;
+  // Ours: at most this many corners outside the frame's movable-class
+  // candidates (after the semantic stage); those inside are all kept. The
+  // corners outside only feed global estimates (the ego-motion's PnP and F,
+  // STDyn's F, DM-SLAM's static offsets), which a spatially even subset
+  // serves; every one of them costs its sub-pixel refinement and its LK
+  // tracks. Chosen evenly over the image: a grid of about this many cells,
+  // the strongest corner of each cell first. 0: all (the papers' codes).
+  int max_background_corners = 0;
   // Sub-pixel corner refinement: cornerSubPix half-window of DS-SLAM's code
   // (Size(10, 10)); 0 turns it off.
   int subpix_window = 10;  // px
@@ -103,9 +111,12 @@ struct MotionCueCache {
 };
 
 // The corners track_points tracks from an image: goodFeaturesToTrack
-// inside the border, cornerSubPix, near-duplicates removed. May throw
-// cv::Exception on options OpenCV refuses.
-std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOptions& o);
+// inside the border, at most max_background_corners of them outside
+// `candidates` (CV_8UC1 of the image's size; else all count as outside),
+// cornerSubPix, near-duplicates removed. May throw cv::Exception on options
+// OpenCV refuses.
+std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOptions& o,
+                                        const cv::Mat& candidates = cv::Mat());
 
 // Depth (calib.bf / disparity) of each of `points` of a rectified left
 // image by LK into the right one and back (stereo_depth_forward_backward_max;
@@ -114,7 +125,7 @@ std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOpti
 std::vector<float> stereo_depths(const std::vector<cv::Mat>& left_pyramid, const std::vector<cv::Mat>& right_pyramid,
                                  const std::vector<cv::Point2f>& points, double bf, const MotionCueOptions& o);
 
-// Starts detect_corners(frame.grey) on another thread, for the track_points
+// Starts detect_corners(frame.grey, o, frame.candidates) on another thread, for the track_points
 // call whose previous frame is `frame` (the next frame's): the detection
 // depends on that frame alone, so it overlaps the rest of this frame's
 // work. For stereo without a depth image (frame.right set, calib.bf > 0) it
@@ -126,7 +137,7 @@ std::vector<float> stereo_depths(const std::vector<cv::Mat>& left_pyramid, const
 void detect_corners_ahead(const FrameData& frame, const map::Calibration& calib, Sensor sensor,
                           const MotionCueOptions& o, MotionCueCache& cache);
 
-// Harris corners on prev.grey, followed by pyramidal LK into cur.grey with a
+// Harris corners on prev.grey (detect_corners with prev.candidates), followed by pyramidal LK into cur.grey with a
 // forward-backward check (forward_backward_max[_rgbd]); pairs with either end within `border` of the image
 // edge are rejected. prev_depth comes from prev.depth (CV_32FC1 metres) when
 // set; else, for stereo, from LK of the corner along the rectified row into

@@ -360,6 +360,54 @@ TEST(MotionCues, CandidateRegionsAreFlaggedAndLeftOutOfTheEgoMotion) {
   EXPECT_EQ(none.inlier.size(), all.size());
 }
 
+// The background budget leaves every corner inside the candidates, keeps a
+// spatially even subset of the rest (every quadrant of the image), and the
+// ego-motion from that subset is as good as from all of them.
+TEST(MotionCues, BackgroundBudgetKeepsCandidateCornersAndSpreadsTheRest) {
+  auto calib = make_calibration(Sensor::kRGBD);
+  Pair p = render_pair(*calib, Sensor::kRGBD);
+  cv::Mat candidates = cv::Mat::zeros(p.prev.grey.size(), CV_8UC1);
+  candidates(cv::Rect(200, 120, 160, 200)).setTo(255);
+  MotionCueOptions all;
+  const auto every = detect_corners(p.prev.grey, all, candidates);
+  const auto inside = [&](const cv::Point2f& c) { return candidates.at<unsigned char>(cvRound(c.y), cvRound(c.x)) != 0; };
+  const long n_in = std::count_if(every.begin(), every.end(), inside);
+  const long n_out = static_cast<long>(every.size()) - n_in;
+  ASSERT_GT(n_in, 20);
+  ASSERT_GT(n_out, 250);
+
+  MotionCueOptions o;
+  o.max_background_corners = 120;
+  const auto some = detect_corners(p.prev.grey, o, candidates);
+  const long some_in = std::count_if(some.begin(), some.end(), inside);
+  // Sub-pixel refinement and duplicate removal run after the choice: allow a
+  // corner or two to merge.
+  EXPECT_NEAR(static_cast<double>(some_in), static_cast<double>(n_in), 2.0);
+  EXPECT_NEAR(static_cast<double>(some.size() - some_in), 120.0, 3.0);
+  int quadrant[4] = {0, 0, 0, 0};
+  for (const auto& c : some)
+    if (!inside(c)) ++quadrant[(c.x >= calib->width / 2 ? 1 : 0) + (c.y >= calib->height / 2 ? 2 : 0)];
+  for (int q : quadrant) EXPECT_GE(q, 15) << quadrant[0] << " " << quadrant[1] << " " << quadrant[2] << " " << quadrant[3];
+
+  // A budget no detection can exceed, or no candidates mask with no budget:
+  // the same corners as without the option.
+  MotionCueOptions large;
+  large.max_background_corners = large.max_corners;
+  EXPECT_EQ(detect_corners(p.prev.grey, large, candidates), every);
+  EXPECT_EQ(detect_corners(p.prev.grey, all, cv::Mat()), detect_corners(p.prev.grey, all));
+
+  // track_points applies the budget with prev.candidates; the ego-motion
+  // from the subset is still accurate.
+  p.prev.candidates = candidates;
+  const auto pts = track_points(p.prev, p.cur, *calib, Sensor::kRGBD, o);
+  ASSERT_LE(pts.size(), some.size());
+  ASSERT_GT(pts.size(), 100u);
+  const EgoMotion ego = estimate_ego_motion(pts, *calib, Sensor::kRGBD, o);
+  ASSERT_TRUE(ego.valid);
+  EXPECT_LT(rotation_error_deg(ego.T_cur_prev, kMotion), 0.1);
+  EXPECT_LT((ego.T_cur_prev.translation() - kMotion.translation()).norm(), 0.01);
+}
+
 TEST(MotionCues, DegenerateInputGivesNothingAndNeverThrows) {
   auto calib = make_calibration(Sensor::kRGBD);
   Pair p = render_pair(*calib, Sensor::kRGBD);
@@ -437,7 +485,7 @@ TEST(MotionCues, DegenerateInputGivesNothingAndNeverThrows) {
 TEST(MotionCues, OptionsReadFromYaml) {
   cv::FileStorage fs(
       "%YAML:1.0\nmotion:\n  max_corners: 500\n  use_harris: 0\n  border: 5\n  forward_backward_max: 0.5\n"
-      "  forward_backward_max_rgbd: 0\n  stereo_depth_forward_backward_max: 0.25\n"
+      "  forward_backward_max_rgbd: 0\n  stereo_depth_forward_backward_max: 0.25\n  max_background_corners: 200\n"
       "bad:\n  max_corners: many\n",
       cv::FileStorage::READ | cv::FileStorage::MEMORY);
   MotionCueOptions o;
@@ -448,6 +496,7 @@ TEST(MotionCues, OptionsReadFromYaml) {
   EXPECT_DOUBLE_EQ(o.forward_backward_max, 0.5);
   EXPECT_DOUBLE_EQ(o.forward_backward_max_rgbd, 0);
   EXPECT_DOUBLE_EQ(o.stereo_depth_forward_backward_max, 0.25);
+  EXPECT_EQ(o.max_background_corners, 200);
   EXPECT_DOUBLE_EQ(o.quality_level, 0.01);  // missing: default kept
   EXPECT_EQ(o.min_ego_points, 12);
   MotionCueOptions b;
