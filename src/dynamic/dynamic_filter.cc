@@ -288,7 +288,8 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
     const std::string name = stage->name();
     if (!ahead_started && stage->needs_motion_cues()) {
       ahead_started = true;
-      if (calib_ && cues_last_frame_) detect_corners_ahead(current, *calib_, sensor_, o_.motion_cues, motion_cue_cache_);
+      if (calib_ && cues_last_frame_)
+        detect_corners_ahead(current, *calib_, sensor_, o_.motion_cues, motion_cue_cache_);
     }
     if (!res.motion_cues && stage->needs_motion_cues() && stage->needs_motion_cues_for(ctx)) {
       const auto t0 = Clock::now();

@@ -125,29 +125,30 @@ std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOpti
 std::vector<float> stereo_depths(const std::vector<cv::Mat>& left_pyramid, const std::vector<cv::Mat>& right_pyramid,
                                  const std::vector<cv::Point2f>& points, double bf, const MotionCueOptions& o);
 
-// Starts detect_corners(frame.grey, o, frame.candidates) on another thread, for the track_points
-// call whose previous frame is `frame` (the next frame's): the detection
-// depends on that frame alone, so it overlaps the rest of this frame's
-// work. For stereo without a depth image (frame.right set, calib.bf > 0) it
-// also finds the corners' depth in frame.right, which track_points would
-// otherwise compute on the calling thread. Same corners and depths as
-// computing them then (LK tracks each point on its own). Call it once per
-// frame before that frame's track_points: the corners started at the last
-// call move to the slot track_points reads.
+// Starts detect_corners(frame.grey, o, frame.candidates) on another thread,
+// for the track_points call whose previous frame is `frame` (the next
+// frame's): the detection depends on that frame alone, so it overlaps the
+// rest of this frame's work. For stereo without a depth image (frame.right
+// set, calib.bf > 0) it also finds the corners' depth in frame.right, which
+// track_points would otherwise compute on the calling thread. Same corners
+// and depths as computing them then (LK tracks each point on its own). Call
+// it once per frame before that frame's track_points: the corners started at
+// the last call move to the slot track_points reads.
 void detect_corners_ahead(const FrameData& frame, const map::Calibration& calib, Sensor sensor,
                           const MotionCueOptions& o, MotionCueCache& cache);
 
-// Harris corners on prev.grey (detect_corners with prev.candidates), followed by pyramidal LK into cur.grey with a
-// forward-backward check (forward_backward_max[_rgbd]); pairs with either end within `border` of the image
-// edge are rejected. prev_depth comes from prev.depth (CV_32FC1 metres) when
-// set; else, for stereo, from LK of the corner along the rectified row into
-// prev.right (|dy| <= 1 px, disparity > 0, depth = calib.bf / disparity);
-// else 0. Depth-image corners on a depth edge get 0 (depth_edge_* options).
-// in_candidate: inside prev.candidates at prev or cur.candidates at cur
-// (either may be empty). Pixels are raw (possibly distorted) image pixels.
-// Degenerate input (empty or mismatched images) gives no points. cache
-// (optional): reuses the previous call's current-image pyramid when prev.grey
-// is that image, and keeps cur.grey's for the next call.
+// Harris corners on prev.grey (detect_corners with prev.candidates), followed
+// by pyramidal LK into cur.grey with a forward-backward check
+// (forward_backward_max[_rgbd]); pairs with either end within `border` of the
+// image edge are rejected. prev_depth comes from prev.depth (CV_32FC1 metres)
+// when set; else, for stereo, from LK of the corner along the rectified row
+// into prev.right (|dy| <= 1 px, disparity > 0, depth = calib.bf /
+// disparity); else 0. Depth-image corners on a depth edge get 0 (depth_edge_*
+// options). in_candidate: inside prev.candidates at prev or cur.candidates at
+// cur (either may be empty). Pixels are raw (possibly distorted) image
+// pixels. Degenerate input (empty or mismatched images) gives no points.
+// cache (optional): reuses the previous call's current-image pyramid when
+// prev.grey is that image, and keeps cur.grey's for the next call.
 std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& cur,
                                        const map::Calibration& calib, Sensor sensor,
                                        const MotionCueOptions& o, MotionCueCache* cache = nullptr);

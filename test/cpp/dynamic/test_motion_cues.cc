@@ -370,7 +370,9 @@ TEST(MotionCues, BackgroundBudgetKeepsCandidateCornersAndSpreadsTheRest) {
   candidates(cv::Rect(200, 120, 160, 200)).setTo(255);
   MotionCueOptions all;
   const auto every = detect_corners(p.prev.grey, all, candidates);
-  const auto inside = [&](const cv::Point2f& c) { return candidates.at<unsigned char>(cvRound(c.y), cvRound(c.x)) != 0; };
+  const auto inside = [&](const cv::Point2f& c) {
+    return candidates.at<unsigned char>(cvRound(c.y), cvRound(c.x)) != 0;
+  };
   const long n_in = std::count_if(every.begin(), every.end(), inside);
   const long n_out = static_cast<long>(every.size()) - n_in;
   ASSERT_GT(n_in, 20);
@@ -387,7 +389,8 @@ TEST(MotionCues, BackgroundBudgetKeepsCandidateCornersAndSpreadsTheRest) {
   int quadrant[4] = {0, 0, 0, 0};
   for (const auto& c : some)
     if (!inside(c)) ++quadrant[(c.x >= calib->width / 2 ? 1 : 0) + (c.y >= calib->height / 2 ? 2 : 0)];
-  for (int q : quadrant) EXPECT_GE(q, 15) << quadrant[0] << " " << quadrant[1] << " " << quadrant[2] << " " << quadrant[3];
+  for (int q : quadrant)
+    EXPECT_GE(q, 15) << quadrant[0] << " " << quadrant[1] << " " << quadrant[2] << " " << quadrant[3];
 
   // A budget no detection can exceed, or no candidates mask with no budget:
   // the same corners as without the option.
