@@ -115,7 +115,7 @@ NodeConfig read_config(const ros::NodeHandle& pnh) {
   cfg.dynamic = param<std::string>(pnh, "dynamic", "off");
   if (cfg.dynamic != "off") {
     const bool is_file = cfg.dynamic.find('/') != std::string::npos ||
-                         cfg.dynamic.size() > 5 && cfg.dynamic.compare(cfg.dynamic.size() - 5, 5, ".yaml") == 0;
+                         (cfg.dynamic.size() > 5 && cfg.dynamic.compare(cfg.dynamic.size() - 5, 5, ".yaml") == 0);
     const std::string path = is_file ? cfg.dynamic : std::string(DYNAORB_CONFIG_DIR) + "/dynamic/" + cfg.dynamic + ".yaml";
     cfg.system.dynamic = dynamic::DynamicFilterOptions::load(path);  // InputError naming the file and key
     cfg.system.dynamic.validate(n.sensor);
