@@ -77,6 +77,7 @@ struct FrameRecord {
   double stamp;
   std::shared_ptr<map::KeyFrame> reference;
   Eigen::Isometry3d T_c_ref;
+  int map;  // the keyframe keeps its last pose once its map is given up
 };
 
 struct System::Impl {
@@ -85,6 +86,7 @@ struct System::Impl {
   SystemOptions options;
   SystemCounters counters;
   std::vector<FrameRecord> records;
+  int map_index = 0;  // TrackResult::map
   TrackingState state = TrackingState::kNoImagesYet;
   long next_frame_id = 0;
   // Tracked (rectified) camera -> input camera rotation, for the output poses.
@@ -196,6 +198,7 @@ struct System::Impl {
     r.stage_ms["tracking"] = ms_since(t0);
     r.method = out.method;
     r.new_keyframe = out.new_keyframe;
+    r.map = map_index;
     if (out.relocalization_ms >= 0) r.stage_ms["relocalization"] = out.relocalization_ms;
     if (out.initialized) ++counters.initializations;
     if (out.ok && out.method == "relocalization") ++counters.relocalizations;
@@ -203,7 +206,7 @@ struct System::Impl {
       r.state = TrackingState::kOk;
       r.pose = output_pose(frame.T_cw);
       r.tracked_points = out.initialized ? frame.matched_points() : out.inliers;
-      records.push_back({stamp, out.reference, out.T_c_ref});
+      records.push_back({stamp, out.reference, out.T_c_ref, map_index});
     } else {
       r.state = tracker->initialized() || counters.initializations > 0 ? TrackingState::kLost
                                                                        : TrackingState::kNotInitialized;
@@ -215,6 +218,17 @@ struct System::Impl {
                                               : "not enough keypoints with depth to initialise")
                   : frame.size() == 0 ? "tracking lost: no keypoints (textureless or fully masked image)"
                                       : "tracking lost";
+    }
+    if (out.drop_map) {
+      // The next frame starts map map_index + 1; this one's keyframe (none:
+      // it was lost) and the old map's queued ones are not mapped.
+      drop_map();
+      ++map_index;
+      ++counters.maps_dropped;
+      r.map_dropped = true;
+      r.message = "tracking lost for too long: map " + std::to_string(map_index - 1) +
+                  " given up, the next frames start map " + std::to_string(map_index);
+      return;
     }
     if (filter) {
       filter->frame_tracked(out.ok ? std::optional<Eigen::Isometry3d>(frame.T_cw) : std::nullopt);
@@ -382,7 +396,9 @@ struct System::Impl {
     return r;
   }
 
-  void reset() {
+  // The map, the threads' work on it, the keyframe database (through the
+  // map's observer) and the filter's keyframes; the trajectory stays.
+  void drop_map() {
     if (mapper) mapper->clear_queue();
     if (loop_closer) loop_closer->reset();
     {
@@ -390,10 +406,15 @@ struct System::Impl {
       map.clear();
       if (tracker) tracker->reset();
     }
+    if (filter) filter->reset();
+  }
+
+  void reset() {
+    drop_map();
     records.clear();
+    map_index = 0;
     state = TrackingState::kNoImagesYet;
     last_stamp = -INFINITY;
-    if (filter) filter->reset();
   }
 
   // Input pixel -> rectified pixel of the left camera (stereo with rectification).
@@ -496,14 +517,24 @@ const SystemCounters& System::counters() const {
   }
   return c;
 }
-Trajectory System::trajectory() const {
+std::vector<TrajectorySegment> System::trajectory_segments() const {
   const Impl& s = *impl_;
-  Trajectory out;
-  out.reserve(s.records.size());
+  std::vector<TrajectorySegment> out;
   std::lock_guard<std::mutex> lk(s.map.mutex());
-  for (const FrameRecord& r : s.records)
-    out.push_back({r.stamp, s.output_pose(r.T_c_ref * r.reference->current_T_cw())});
+  for (const FrameRecord& r : s.records) {
+    if (out.empty() || out.back().map != r.map) out.push_back({r.map, {}});
+    out.back().poses.push_back({r.stamp, s.output_pose(r.T_c_ref * r.reference->current_T_cw())});
+  }
   return out;
+}
+
+Trajectory System::trajectory() const {
+  std::vector<TrajectorySegment> segments = trajectory_segments();
+  if (segments.empty()) return {};
+  size_t best = 0;
+  for (size_t i = 1; i < segments.size(); ++i)
+    if (segments[i].poses.size() >= segments[best].poses.size()) best = i;
+  return std::move(segments[best].poses);
 }
 
 std::vector<Eigen::Vector3d> System::map_points() const {
@@ -565,6 +596,7 @@ void System::load_map(const std::string& path) {
   s.mapper->clear_queue();  // forgets the old map's recent points
   if (s.filter) s.filter->reset();  // its keyframes' poses belong to the old map
   s.records.clear();
+  s.map_index = 0;
   s.state = TrackingState::kLost;
   s.last_stamp = -INFINITY;
 }

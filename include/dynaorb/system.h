@@ -49,6 +49,11 @@ struct TrackResult {
   bool new_keyframe = false;
   std::string method;                        // init / motion_model / reference_keyframe /
                                              // relocalization / lost
+  // The map the frame's pose is in: 0 for the first, one more each time a
+  // lost map was given up (TrackerOptions::new_map_after_lost_s); poses of
+  // different maps are in different worlds (for monocular, scales).
+  int map = 0;
+  bool map_dropped = false;                  // this frame gave up the lost map
   // The dynamic-object front end (SystemOptions::dynamic), when on. Its
   // times are in stage_ms: "dynamic" (the whole filter), "dynamic.<stage>"
   // and "dynamic.motion_cues".
@@ -117,6 +122,12 @@ struct SystemOptions {
   dynamic::DynamicFilterOptions dynamic;
 };
 
+// The tracked frames of one map (TrackResult::map), in their own world.
+struct TrajectorySegment {
+  int map = 0;
+  Trajectory poses;
+};
+
 struct MapSummary {
   long keyframes = 0;
   long points = 0;
@@ -134,6 +145,7 @@ struct SystemCounters {
   long dynamic_stage_failures = 0;  // stage runs that threw (their regions dropped)
   long lost = 0;            // frames with state kLost
   long initializations = 0; // map (re)initialisations
+  long maps_dropped = 0;    // lost maps given up for a new one (TrackerOptions)
   long relocalizations = 0; // lost frames found again in the map (needs a vocabulary)
   long loops_closed = 0;    // loops detected and corrected (needs loop closing)
   long global_ba_runs = 0;  // global bundle adjustments finished after a loop
@@ -170,7 +182,11 @@ class System {
   // Poses of tracked frames, in order, through their reference keyframes'
   // current (bundle-adjusted) poses. Camera frame: the input camera (for
   // rectified stereo the unrectified left camera); world: its first pose.
+  // When a lost map was given up (TrackResult::map), the map with the most
+  // tracked frames, the latest of equals (ORB-SLAM3 saves its largest map).
   Trajectory trajectory() const;
+  // Every map's poses, in the order of the maps; one segment without a new map.
+  std::vector<TrajectorySegment> trajectory_segments() const;
   std::vector<Eigen::Vector3d> map_points() const;  // world coordinates
   MapSummary map_summary() const;
   // Drops the map, the keyframe database and the trajectory; the next frame starts a new map.

@@ -305,6 +305,7 @@ PYBIND11_MODULE(_core, m) {
       .def_readwrite("min_frames", &tracking::TrackerOptions::min_frames)
       .def_readwrite("reset_if_lost_below_keyframes", &tracking::TrackerOptions::reset_if_lost_below_keyframes)
       .def_readwrite("reset_after_lost", &tracking::TrackerOptions::reset_after_lost)
+      .def_readwrite("new_map_after_lost_s", &tracking::TrackerOptions::new_map_after_lost_s)
       .def_readwrite("mono_init_feature_factor", &tracking::TrackerOptions::mono_init_feature_factor)
       .def_readwrite("mono_init_feature_frames", &tracking::TrackerOptions::mono_init_feature_frames)
       .def_readwrite("stereo_right_budget_max_factor", &tracking::TrackerOptions::stereo_right_budget_max_factor)
@@ -355,6 +356,8 @@ PYBIND11_MODULE(_core, m) {
       .def_readonly("tracked_points", &TrackResult::tracked_points)
       .def_readonly("new_keyframe", &TrackResult::new_keyframe)
       .def_readonly("method", &TrackResult::method)
+      .def_readonly("map", &TrackResult::map, "The map the pose is in (one more after each map given up).")
+      .def_readonly("map_dropped", &TrackResult::map_dropped, "This lost frame gave the map up.")
       .def_readonly("labels_used", &TrackResult::labels_used)
       .def_readonly("dynamic_keypoints", &TrackResult::dynamic_keypoints,
                     "Keypoints the dynamic filter's mask kept out (those an extraction without it kept there).")
@@ -440,6 +443,7 @@ PYBIND11_MODULE(_core, m) {
         d["rejected_by_reason"] = c.rejected_by_reason;
         d["lost"] = c.lost;
         d["initializations"] = c.initializations;
+        d["maps_dropped"] = c.maps_dropped;
         d["relocalizations"] = c.relocalizations;
         d["loops_closed"] = c.loops_closed;
         d["global_ba_runs"] = c.global_ba_runs;
@@ -477,7 +481,16 @@ PYBIND11_MODULE(_core, m) {
         d["last_global_ba_ms"] = m.loop.last_global_ba_ms;
         return d;
       })
-      .def("trajectory", [](const System& s) { return trajectory_to_numpy(s.trajectory()); })
+      .def("trajectory", [](const System& s) { return trajectory_to_numpy(s.trajectory()); },
+           "(stamps, poses) of the map with the most tracked frames (all of them without a new map).")
+      .def("trajectory_segments", [](const System& s) {
+        py::list out;
+        for (const TrajectorySegment& seg : s.trajectory_segments()) {
+          py::tuple t = trajectory_to_numpy(seg.poses);
+          out.append(py::make_tuple(seg.map, t[0], t[1]));
+        }
+        return out;
+      }, "[(map, stamps, poses)] for every map, in order: a lost map given up starts a new segment.")
       .def_property_readonly("dynamic_filter_enabled", &System::dynamic_filter_enabled)
       .def("last_dynamic_mask", [](const System& s) { return to_numpy(s.last_dynamic_mask()); },
            "The dynamic filter's mask of the last frame (uint8 HxW, 255 = dynamic) in the input image's\n"

@@ -110,6 +110,10 @@ NodeConfig read_config(const ros::NodeHandle& pnh) {
   cfg.system.loop_closing = param(pnh, "loop_closing", true);
   cfg.system.localization_only = param(pnh, "localization_only", false);
   cfg.system.mapping.ba_threads = param(pnh, "ba_threads", cfg.system.mapping.ba_threads);
+  // Lost this long (seconds of image stamps): the map is given up for a new
+  // one, whose world is unrelated (TrackingStatus.map counts them); 0: never.
+  cfg.system.tracker.new_map_after_lost_s =
+      param(pnh, "new_map_after_lost_s", cfg.system.tracker.new_map_after_lost_s);
   // The dynamic-object front end: a preset name (config/dynamic/<name>.yaml of
   // this package) or a preset file; "off": none.
   cfg.dynamic = param<std::string>(pnh, "dynamic", "off");

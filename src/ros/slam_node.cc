@@ -588,6 +588,8 @@ void SlamNode::publish_status(const FrameInput& f, const TrackResult& r, double 
   s.mask_used = r.mask_used || r.labels_used;  // a mask, or labels the dynamic filter used
   s.label_age = label_age;
   s.frame_ms = frame_ms(r);
+  s.map = r.map;
+  s.map_dropped = r.map_dropped;
   {
     std::lock_guard<std::mutex> lk(system_mutex_);
     const MapSummary m = system_->map_summary();
@@ -602,6 +604,7 @@ void SlamNode::publish_status(const FrameInput& f, const TrackResult& r, double 
   pub_status_.publish(s);
   if (r.rejected != RejectReason::kNone)
     ROS_WARN_THROTTLE(5.0, "dynaorb_node: frame %.6f rejected: %s", f.header.stamp.toSec(), r.message.c_str());
+  if (r.map_dropped) ROS_WARN("dynaorb_node: frame %.6f: %s", f.header.stamp.toSec(), r.message.c_str());
 }
 
 // ---------------------------------------------------------------- services

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <limits>
 #include <map>
 #include <unordered_map>
 
@@ -42,6 +44,7 @@ void Tracker::reset() {
   initialized_ = false;
   last_ok_ = false;
   lost_streak_ = 0;
+  lost_since_ = std::numeric_limits<double>::quiet_NaN();
   has_velocity_ = false;
   last_ = Frame();
   reference_.reset();
@@ -118,15 +121,17 @@ TrackOutcome Tracker::track(Frame& f) {
     last_ok_ = false;
     has_velocity_ = false;
     if (localization_ || keep_map_) return out;  // the map is kept: relocalised later
-    // Relocalisation (above) failed too: only a small map is given up, and
-    // only after reset_after_lost frames that a new map could start from.
-    if (can_initialize(f)) ++lost_streak_;
-    if (lost_streak_ >= o_.reset_after_lost &&
-        static_cast<int>(map_.keyframe_count()) <= o_.reset_if_lost_below_keyframes) {
-      // Lost right after initialisation: start again from this frame (ORB-SLAM2).
-      map_.clear();
-      reset();
-    }
+    // Relocalisation (above) failed too. The map is given up only for a
+    // frame a new map could start from: a small one (lost right after
+    // initialisation, ORB-SLAM2) after reset_after_lost such frames, any
+    // one after new_map_after_lost_s seconds lost (ORB-SLAM3).
+    if (std::isnan(lost_since_)) lost_since_ = f.stamp;
+    if (!can_initialize(f)) return out;
+    ++lost_streak_;
+    const bool small = lost_streak_ >= o_.reset_after_lost &&
+                       static_cast<int>(map_.keyframe_count()) <= o_.reset_if_lost_below_keyframes;
+    const bool long_lost = o_.new_map_after_lost_s > 0 && f.stamp - lost_since_ >= o_.new_map_after_lost_s;
+    out.drop_map = small || long_lost;
     return out;
   }
   out.ok = true;
@@ -136,6 +141,7 @@ TrackOutcome Tracker::track(Frame& f) {
   velocity_ = f.T_cw * last_.T_cw.inverse();
   has_velocity_ = last_ok_ && out.method != "relocalization";
   lost_streak_ = 0;
+  lost_since_ = std::numeric_limits<double>::quiet_NaN();
   // Visual-odometry matches (points not in the map) do not outlive the frame.
   for (int i = 0; i < f.size(); ++i)
     if (f.points[i] && f.points[i]->observation_count() < 1) f.points[i].reset();

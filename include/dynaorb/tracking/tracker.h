@@ -13,6 +13,7 @@
 // bag-of-words matches, PnP RANSAC, motion-only BA and a projection search.
 // Without one, reference-keyframe matching is brute force and a lost frame
 // is tried against the reference keyframe only.
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -87,6 +88,15 @@ struct TrackerOptions {
   // frame is relocalised first (with a vocabulary); a larger map is never dropped.
   int reset_if_lost_below_keyframes = 5;
   int reset_after_lost = 10;
+  // A map of any size is given up, and the next frame that could start a
+  // new one does, once tracking (relocalisation included) has failed for this
+  // many seconds of frame stamps: ORB-SLAM3 v1.0 (Tracking::Track, visual
+  // sensors) keeps a lost map "recently lost" for 3 s, then starts a new map
+  // in its atlas. Without an atlas the old map's keyframes and points go; the
+  // poses it gave stay in the trajectory as their own segment (System::
+  // trajectory_segments). 0: never (ORB-SLAM2). A loaded map or localisation
+  // mode is never given up.
+  double new_map_after_lost_s = 3.0;
   // Monocular initialisation (ORB-SLAM2's MonocularInitialization).
   // Features extracted while a monocular map is initialised, as a multiple of
   // nFeatures (ORB-SLAM2 takes 2, ORB-SLAM3 5), and frames after the one that
@@ -155,6 +165,10 @@ struct TrackOutcome {
   std::shared_ptr<map::KeyFrame> reference;
   Eigen::Isometry3d T_c_ref = Eigen::Isometry3d::Identity();
   double relocalization_ms = -1;  // time spent relocalising this frame; < 0: not tried
+  // Lost for too long (reset_after_lost / new_map_after_lost_s): the caller
+  // drops the map (and whatever refers to it) and calls reset(); the next
+  // frame initialises a new map.
+  bool drop_map = false;
   // Monocular initialisation: why this frame made no map (the reference was
   // reset, the two views were refused and why, the map was refused after BA).
   std::string init_status;
@@ -237,6 +251,7 @@ class Tracker {
   bool vo_ = false;        // localisation only: the last frame was tracked by visual odometry
   bool last_ok_ = false;
   int lost_streak_ = 0;  // lost frames in a row that could have initialised a map
+  double lost_since_ = std::numeric_limits<double>::quiet_NaN();  // first lost frame's stamp; NaN: not lost
   map::Frame last_;
   Eigen::Isometry3d last_T_c_ref_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();

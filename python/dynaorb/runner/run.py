@@ -139,6 +139,24 @@ def write_ply(path: pathlib.Path, points) -> None:
             f.write(f"{x:.6f} {y:.6f} {z:.6f}\n")
 
 
+def _write_segments(system, out: pathlib.Path) -> list[dict]:
+    """One entry per map the frames were tracked in; with more than one map,
+    each map's poses go to OUT/trajectory_map<K>.tum as well."""
+    segments = system.trajectory_segments()
+    main_stamps = system.trajectory()[0]
+    maps = []
+    for index, stamps, poses in segments:
+        entry = {"map": int(index), "frames": len(stamps), "first_stamp": float(stamps[0]),
+                 "last_stamp": float(stamps[-1]),
+                 "in_trajectory_tum": len(stamps) == len(main_stamps) and bool(np.all(stamps == main_stamps))}
+        if len(segments) > 1:
+            name = f"trajectory_map{index}.tum"
+            core().write_tum(str(out / name), stamps, poses)
+            entry["file"] = name
+        maps.append(entry)
+    return maps
+
+
 def _evaluate(provider, stamps, poses, sensor: str, out: pathlib.Path) -> dict:
     gt_stamps, gt_poses = provider.ground_truth()
     if len(gt_stamps) == 0:
@@ -403,6 +421,7 @@ def _run(_core, opts: RunOptions, segmenter, semantic, tracker) -> dict:
     _core.write_tum(str(out / "trajectory.tum"), stamps, poses)
     if opts.kind == "kitti":
         _core.write_kitti(str(out / "trajectory.kitti"), stamps, poses)
+    maps = _write_segments(system, out)
     write_ply(out / "map_points.ply", system.map_points())
     counters = system.counters()
     stats = {
@@ -438,6 +457,8 @@ def _run(_core, opts: RunOptions, segmenter, semantic, tracker) -> dict:
         "relocalizations": int(counters["relocalizations"]),
         "vocabulary": opts.vocabulary if isinstance(opts.vocabulary, (str, type(None))) else "given",
         "initializations": int(counters["initializations"]),
+        "maps_dropped": int(counters["maps_dropped"]),
+        "maps": maps,
         "map": system.map_summary(),
         "synchronous_mapping": opts.synchronous_mapping,
         "realtime": pacer.summary() if pacer is not None else None,
