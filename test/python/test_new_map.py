@@ -105,7 +105,7 @@ def test_zero_keeps_the_lost_map(data, real_vocabulary):
 
 
 class _TwoMaps:
-    """The System calls the runner makes for its trajectory files."""
+    """The System call the runner makes for its per-map trajectory files."""
 
     def __init__(self):
         poses = np.repeat(np.eye(4)[None], 5, axis=0)
@@ -114,12 +114,10 @@ class _TwoMaps:
     def trajectory_segments(self):
         return self.segments
 
-    def trajectory(self):
-        return self.segments[1][1], self.segments[1][2]
-
 
 def test_runner_writes_every_map(tmp_path):
-    maps = runner._write_segments(_TwoMaps(), tmp_path)
+    two = _TwoMaps()
+    maps = runner._write_segments(two, tmp_path, two.segments[1][1])
     assert [(m["map"], m["frames"], m["in_trajectory_tum"], m["file"]) for m in maps] == [
         (0, 2, False, "trajectory_map0.tum"), (1, 3, True, "trajectory_map1.tum")]
     assert maps[1]["first_stamp"] == 0.5 and maps[1]["last_stamp"] == 0.7

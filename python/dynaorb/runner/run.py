@@ -139,11 +139,11 @@ def write_ply(path: pathlib.Path, points) -> None:
             f.write(f"{x:.6f} {y:.6f} {z:.6f}\n")
 
 
-def _write_segments(system, out: pathlib.Path) -> list[dict]:
-    """One entry per map the frames were tracked in; with more than one map,
-    each map's poses go to OUT/trajectory_map<K>.tum as well."""
+def _write_segments(system, out: pathlib.Path, main_stamps) -> list[dict]:
+    """One entry per map the frames were tracked in (main_stamps: those of
+    system.trajectory(), in trajectory.tum); with more than one map, each
+    map's poses go to OUT/trajectory_map<K>.tum as well."""
     segments = system.trajectory_segments()
-    main_stamps = system.trajectory()[0]
     maps = []
     for index, stamps, poses in segments:
         entry = {"map": int(index), "frames": len(stamps), "first_stamp": float(stamps[0]),
@@ -421,7 +421,7 @@ def _run(_core, opts: RunOptions, segmenter, semantic, tracker) -> dict:
     _core.write_tum(str(out / "trajectory.tum"), stamps, poses)
     if opts.kind == "kitti":
         _core.write_kitti(str(out / "trajectory.kitti"), stamps, poses)
-    maps = _write_segments(system, out)
+    maps = _write_segments(system, out, stamps)
     write_ply(out / "map_points.ply", system.map_points())
     counters = system.counters()
     stats = {
