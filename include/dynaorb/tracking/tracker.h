@@ -85,7 +85,8 @@ struct TrackerOptions {
   // frames in a row that could have initialised a map (ORB-SLAM2 resets at
   // once; a blacked-out or textureless frame says nothing about whether the
   // map is still reachable, and no new map could start from it). Every lost
-  // frame is relocalised first (with a vocabulary); a larger map is never dropped.
+  // frame is relocalised first (with a vocabulary); a larger map is dropped only
+  // after new_map_after_lost_s (below).
   int reset_if_lost_below_keyframes = 5;
   int reset_after_lost = 10;
   // A map of any size is given up, and the next frame that could start a
