@@ -140,6 +140,7 @@ struct System::Impl {
   Impl(const Settings& s, Sensor k, const SystemOptions& o) : settings(s), sensor(k), options(o) {
     settings.validate(sensor);
     options.dynamic.validate(sensor);  // a stage the sensor cannot run: refused now, not at the first frame
+    options.tracker.validate();
     if (options.vocabulary && options.vocabulary->empty())
       throw InputError("the vocabulary is empty (load or train one, or pass none)");
     if (settings.camera.width > 0 && settings.camera.height > 0)

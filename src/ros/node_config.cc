@@ -114,6 +114,7 @@ NodeConfig read_config(const ros::NodeHandle& pnh) {
   // one, whose world is unrelated (TrackingStatus.map counts them); 0: never.
   cfg.system.tracker.new_map_after_lost_s =
       param(pnh, "new_map_after_lost_s", cfg.system.tracker.new_map_after_lost_s);
+  cfg.system.tracker.validate();  // refused at start-up, naming the parameter, not at the first image
   // The dynamic-object front end: a preset name (config/dynamic/<name>.yaml of
   // this package) or a preset file; "off": none.
   cfg.dynamic = param<std::string>(pnh, "dynamic", "off");

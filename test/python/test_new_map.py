@@ -49,6 +49,22 @@ def test_default_is_orbslam3_three_seconds():
     assert core().TrackerOptions().new_map_after_lost_s == 3.0
 
 
+@pytest.mark.parametrize("value, shown", [(float("nan"), "nan"), (-1.0, "-1")])
+def test_a_nan_or_negative_time_is_refused_by_name(data, tmp_path, value, shown):
+    # Before TrackerOptions::validate a NaN silently meant "never".
+    provider = core().open_dataset("kitti", str(data / "kitti" / "sequences" / "06"))
+    options = core().TrackerOptions()
+    options.new_map_after_lost_s = value
+    with pytest.raises(ValueError, match=f"tracker option 'new_map_after_lost_s' is {shown}; it must be"):
+        core().System(provider.default_settings(), "stereo", tracker=options)
+    # The runner's `--tracker KEY=VALUE` reaches the same check before any output.
+    with pytest.raises(ValueError, match="'new_map_after_lost_s' is nan"):
+        runner.run_dataset(runner.RunOptions(kind="kitti", path=str(data / "kitti" / "sequences" / "06"),
+                                             out=str(tmp_path / "run"), progress=False,
+                                             tracker={"new_map_after_lost_s": "nan"}))
+    assert not (tmp_path / "run" / "stats.json").exists()
+
+
 def test_a_map_lost_for_too_long_is_replaced(data, real_vocabulary):
     provider, system, results = _run(data, real_vocabulary, 1.0)
     stamps = np.array([provider.stamp(i) for i in range(len(provider))])

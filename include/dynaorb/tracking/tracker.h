@@ -152,6 +152,12 @@ struct TrackerOptions {
   double stereo_right_budget_max_factor = 2.0;
   TwoViewOptions two_view;            // H / F model selection and reconstruction
   RelocalizationOptions reloc;
+
+  // InputError naming the first bad field: a negative count, a radius that
+  // is not a finite number > 0, a ratio outside (0, 1], a negative or
+  // non-finite new_map_after_lost_s, a stereo_right_budget_max_factor below 1.
+  // System calls it on construction.
+  void validate() const;
 };
 
 struct TrackOutcome {

@@ -1,0 +1,68 @@
+// TrackerOptions::validate: the defaults pass; a bad value of each kind is
+// refused with an InputError that names the field.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "dynaorb/io/errors.h"
+#include "dynaorb/tracking/tracker.h"
+
+namespace dynaorb {
+namespace {
+
+using tracking::TrackerOptions;
+
+std::string refusal(const std::function<void(TrackerOptions&)>& change) {
+  TrackerOptions o;
+  change(o);
+  try {
+    o.validate();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(TrackerOptions, DefaultsAreValid) { EXPECT_NO_THROW(TrackerOptions().validate()); }
+
+TEST(TrackerOptions, ZeroIsAcceptedWhereItMeansOff) {
+  EXPECT_EQ(refusal([](TrackerOptions& o) { o.new_map_after_lost_s = 0; }), "");
+  EXPECT_EQ(refusal([](TrackerOptions& o) { o.min_frames = 0; }), "");
+  EXPECT_EQ(refusal([](TrackerOptions& o) { o.stereo_right_budget_max_factor = 1; }), "");
+  EXPECT_EQ(refusal([](TrackerOptions& o) { o.ref_ratio_mono = 1; }), "");
+}
+
+TEST(TrackerOptions, BadValuesAreRefusedByName) {
+  const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+  struct Case {
+    std::string field;
+    std::function<void(TrackerOptions&)> change;
+  };
+  const std::vector<Case> cases = {
+      {"'new_map_after_lost_s' is nan", [&](TrackerOptions& o) { o.new_map_after_lost_s = nan; }},
+      {"'new_map_after_lost_s' is -1", [](TrackerOptions& o) { o.new_map_after_lost_s = -1; }},
+      {"'new_map_after_lost_s' is inf", [&](TrackerOptions& o) { o.new_map_after_lost_s = inf; }},
+      {"'min_local_map_inliers' is -5", [](TrackerOptions& o) { o.min_local_map_inliers = -5; }},
+      {"'reloc.min_inliers' is -1", [](TrackerOptions& o) { o.reloc.min_inliers = -1; }},
+      {"'max_local_keyframes' is 0", [](TrackerOptions& o) { o.max_local_keyframes = 0; }},
+      {"'mono_init_feature_factor' is 0", [](TrackerOptions& o) { o.mono_init_feature_factor = 0; }},
+      {"'motion_th_stereo' is 0", [](TrackerOptions& o) { o.motion_th_stereo = 0; }},
+      {"'reloc.wide_window' is nan", [&](TrackerOptions& o) { o.reloc.wide_window = nan; }},
+      {"'ref_ratio_stereo' is 1.5", [](TrackerOptions& o) { o.ref_ratio_stereo = 1.5; }},
+      {"'reloc.bow_ratio' is 0", [](TrackerOptions& o) { o.reloc.bow_ratio = 0; }},
+      {"'stereo_right_budget_max_factor' is 0.5",
+       [](TrackerOptions& o) { o.stereo_right_budget_max_factor = 0.5; }},
+  };
+  for (const Case& c : cases) {
+    const std::string msg = refusal(c.change);
+    EXPECT_NE(msg.find("tracker option " + c.field), std::string::npos) << c.field << ": got '" << msg << "'";
+    EXPECT_NE(msg.find("it must be"), std::string::npos) << msg;
+  }
+}
+
+}  // namespace
+}  // namespace dynaorb
