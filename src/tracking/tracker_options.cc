@@ -1,12 +1,13 @@
-// TrackerOptions::validate: every field checked, the bad one named. The
+// TrackerOptions::validate: its numbers and reloc's checked, the bad one
+// named (two_view and reloc.pnp are not checked). The
 // options come from Python (`dynaorb run --tracker KEY=VALUE`), ROS
 // parameters and C++ callers; a negative count, a ratio outside (0, 1] or a
 // non-finite number would otherwise change tracking silently (a NaN
 // new_map_after_lost_s, say, would mean "never" without a word).
 #include <cmath>
 #include <cstdio>
-#include <utility>
 #include <string>
+#include <utility>
 
 #include "dynaorb/io/errors.h"
 #include "dynaorb/tracking/tracker.h"

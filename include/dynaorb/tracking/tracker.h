@@ -153,7 +153,8 @@ struct TrackerOptions {
   TwoViewOptions two_view;            // H / F model selection and reconstruction
   RelocalizationOptions reloc;
 
-  // InputError naming the first bad field: a negative count, a radius that
+  // InputError naming the first bad field of these and reloc's (two_view and
+  // reloc.pnp are not checked): a negative count, a radius that
   // is not a finite number > 0, a ratio outside (0, 1], a negative or
   // non-finite new_map_after_lost_s, a stereo_right_budget_max_factor below 1.
   // System calls it on construction.
