@@ -410,12 +410,17 @@ struct System::Impl {
     if (filter) filter->reset();
   }
 
-  void reset() {
-    drop_map();
+  // The trajectory, the map count and the stamp order start again (reset, a loaded map).
+  void restart_trajectory(TrackingState next) {
     records.clear();
     map_index = 0;
-    state = TrackingState::kNoImagesYet;
+    state = next;
     last_stamp = -INFINITY;
+  }
+
+  void reset() {
+    drop_map();
+    restart_trajectory(TrackingState::kNoImagesYet);
   }
 
   // Input pixel -> rectified pixel of the left camera (stereo with rectification).
@@ -596,10 +601,7 @@ void System::load_map(const std::string& path) {
   }
   s.mapper->clear_queue();  // forgets the old map's recent points
   if (s.filter) s.filter->reset();  // its keyframes' poses belong to the old map
-  s.records.clear();
-  s.map_index = 0;
-  s.state = TrackingState::kLost;
-  s.last_stamp = -INFINITY;
+  s.restart_trajectory(TrackingState::kLost);
 }
 
 void System::set_localization_mode(bool on) {
