@@ -3,6 +3,7 @@
 #include <chrono>
 #include <limits>
 #include <map>
+#include <thread>
 #include <cmath>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -110,6 +111,7 @@ struct System::Impl {
   // per-frame images: the input's colour (BGR) and the label image, both in
   // the tracked image's pixels.
   std::unique_ptr<dynamic::DynamicFilter> filter;
+  bool overlap_extraction = false;  // the filter runs beside the corner detection (DynamicFilterOptions)
   cv::Mat colour, labels;
   cv::Mat unrectify_map;  // input pixel -> rectified pixel (CV_32FC2), for last_dynamic_mask()
   // Stereo depth by semi-global block matching of the frames dense_frame()
@@ -183,7 +185,10 @@ struct System::Impl {
     if (settings.camera.fps > 0) t.max_frames = static_cast<int>(std::lround(settings.camera.fps));
     tracker = std::make_unique<tracking::Tracker>(map, *mapper, sensor, t, options.vocabulary, database.get());
     tracker->set_localization_mode(options.localization_only);
-    if (dynamic_on()) filter = std::make_unique<dynamic::DynamicFilter>(options.dynamic, sensor, calib);
+    if (dynamic_on()) {
+      filter = std::make_unique<dynamic::DynamicFilter>(options.dynamic, sensor, calib);
+      overlap_extraction = options.dynamic.overlaps_extraction(sensor, std::thread::hardware_concurrency());
+    }
   }
 
   // Output pose of the input camera in the world of the first input camera.
@@ -373,21 +378,35 @@ struct System::Impl {
     if (expected_size.area() == 0) expected_size = grey.size();
     last_stamp = stamp;
     ensure_core(grey.size());
-    const cv::Mat dynamic_mask = run_filter(stamp, r);
-    cv::Mat exclude = exclusion();
-    features::ExcludedCount count;
-    features::ExcludedCount* counting = nullptr;
-    if (!dynamic_mask.empty() && cv::countNonZero(dynamic_mask) > 0) {
-      exclude = exclude.empty() ? dynamic_mask : (exclude | dynamic_mask);
-      count.region = dynamic_mask;
-      counting = &count;
-    }
     tracking::StageTimes t;
     std::shared_ptr<const map::Features> f;
-    switch (sensor) {
-      case Sensor::kMono: f = builder->mono(grey, exclude, t, tracker->wants_init_features(next_frame_id), counting); break;
-      case Sensor::kStereo: f = builder->stereo(grey, grey_right, exclude, t, counting); break;
-      case Sensor::kRGBD: f = builder->rgbd(grey, depth_m, exclude, t, counting); break;
+    features::ExcludedCount count;
+    // The filter's mask, with the caller's: what the extraction leaves out.
+    const auto exclude = [&] {
+      cv::Mat m = exclusion();
+      const cv::Mat dynamic_mask = run_filter(stamp, r);
+      if (!dynamic_mask.empty() && cv::countNonZero(dynamic_mask) > 0) {
+        m = m.empty() ? dynamic_mask : (m | dynamic_mask);
+        count.region = dynamic_mask;
+      }
+      return m;
+    };
+    const bool init = sensor == Sensor::kMono && tracker->wants_init_features(next_frame_id);
+    if (overlap_extraction) {
+      // The filter runs here while a worker thread detects the corners.
+      const tracking::ExclusionSource source = exclude;
+      switch (sensor) {
+        case Sensor::kMono: f = builder->mono(grey, source, t, init, &count); break;
+        case Sensor::kStereo: f = builder->stereo(grey, grey_right, source, t, &count); break;
+        case Sensor::kRGBD: f = builder->rgbd(grey, depth_m, source, t, &count); break;
+      }
+    } else {
+      const cv::Mat m = exclude();
+      switch (sensor) {
+        case Sensor::kMono: f = builder->mono(grey, m, t, init, &count); break;
+        case Sensor::kStereo: f = builder->stereo(grey, grey_right, m, t, &count); break;
+        case Sensor::kRGBD: f = builder->rgbd(grey, depth_m, m, t, &count); break;
+      }
     }
     r.dynamic_keypoints = count.keypoints;
     r.stage_ms.insert(t.begin(), t.end());

@@ -41,6 +41,7 @@ std::string joined(const std::vector<std::string>& v) {
 const char* const kStagesKey = "Dynamic.stages";
 const char* const kKeyframesKey = "Dynamic.keyframes";
 const char* const kAllDynamicKey = "Dynamic.all_dynamic_fraction";
+const char* const kOverlapKey = "Dynamic.overlap_extraction";
 const char* const kMotionCuesKey = "Dynamic.motion_cues";
 const char* const kInpaintingKey = "Dynamic.inpainting";
 const std::string kPrefix = "Dynamic.";
@@ -140,6 +141,10 @@ DynamicFilterOptions from_storage(std::shared_ptr<cv::FileStorage> fs, const std
       if ((!n.isReal() && !n.isInt()) || static_cast<double>(n) <= 0 || static_cast<double>(n) > 1)
         throw InputError(source, 0, "'" + key + "' must be a number in (0, 1]");
       o.all_dynamic_fraction = static_cast<double>(n);
+    } else if (key == kOverlapKey) {
+      if (!n.isInt() || static_cast<int>(n) < -1 || static_cast<int>(n) > 1)
+        throw InputError(source, 0, "'" + key + "' must be -1 (auto), 0 (never) or 1 (always)");
+      o.overlap_extraction = static_cast<int>(n);
     } else if (key == kMotionCuesKey) {
       read_options(n, key, source, [](const cv::FileNode& node) { MotionCueOptions().read(node); });
       if (!n.empty() && !n.isNone()) o.motion_cues.read(n);
@@ -151,7 +156,8 @@ DynamicFilterOptions from_storage(std::shared_ptr<cv::FileStorage> fs, const std
       StageFactory make = factory_of(stage);
       if (!make)
         throw InputError(source, 0, "unknown key '" + key + "' (stages: " + joined(registered_stages()) +
-                                        "; other keys: stages, keyframes, all_dynamic_fraction, motion_cues, inpainting)");
+                                        "; other keys: stages, keyframes, all_dynamic_fraction, overlap_extraction, "
+                                        "motion_cues, inpainting)");
       // Builds the stage once: its options are checked here, at load time.
       read_options(n, key, source, [&make](const cv::FileNode& node) { make(node); });
     }
@@ -200,6 +206,11 @@ DynamicFilterOptions DynamicFilterOptions::parse(const std::string& yaml, const 
   }
   if (!fs->isOpened()) throw InputError(source, 0, "not valid OpenCV YAML");
   return from_storage(fs, source);
+}
+
+bool DynamicFilterOptions::overlaps_extraction(Sensor sensor, unsigned hardware_threads) const {
+  if (overlap_extraction >= 0) return overlap_extraction == 1;
+  return hardware_threads >= (sensor == Sensor::kStereo ? 4u : 2u);
 }
 
 const std::vector<std::string>& DynamicFilterOptions::stages_for(Sensor sensor) const {

@@ -35,11 +35,10 @@ constexpr int kDescriptorBytes = 32;
 // extracted on two threads with two extractors).
 struct Scratch {
   std::vector<std::vector<cv::KeyPoint>> level_kps;  // kept keypoints, level pixels
-  std::vector<cv::KeyPoint> candidates, cell_kps;
+  std::vector<cv::KeyPoint> cell_kps;
   std::vector<unsigned char> cell_found;
   std::vector<int> keep;
   detail::QuadtreeScratch quadtree;
-  cv::Mat blurred;
 };
 thread_local Scratch t_scratch;
 
@@ -71,7 +70,7 @@ float ic_angle(const cv::Mat& img, int x, int y, const std::vector<int>& umax) {
 // Steered BRIEF: each of the 256 point pairs is rotated by the keypoint angle
 // and the blurred intensities compared (bit = I(p1) < I(p2)). The arithmetic
 // follows OpenCV's ORB so that the bits are identical.
-void describe(const cv::Mat& blurred, int x, int y, float angle_deg, uchar* desc) {
+void describe_keypoint(const cv::Mat& blurred, int x, int y, float angle_deg, uchar* desc) {
   const float angle = angle_deg * static_cast<float>(CV_PI / 180.f);
   const float a = static_cast<float>(std::cos(angle)), b = static_cast<float>(std::sin(angle));
   const uchar* center = blurred.ptr<uchar>(y) + x;
@@ -149,57 +148,73 @@ void OrbExtractor::set_n_features(int n) {
   features_per_level_[L - 1] = std::max(n - sum, 0);
 }
 
-void OrbExtractor::extract(const cv::Mat& image, const cv::Mat& exclude,
-                           std::vector<cv::KeyPoint>& keypoints, cv::Mat& descriptors, ExcludedCount* count) {
+namespace {
+void check_image(const cv::Mat& image) {
   if (image.empty()) throw std::invalid_argument("OrbExtractor::extract: image is empty");
   if (image.type() != CV_8UC1)
     throw std::invalid_argument("OrbExtractor::extract: image must be CV_8UC1 (grayscale), got "
                                 "type " + std::to_string(image.type()));
-  if (!exclude.empty() && (exclude.type() != CV_8UC1 || exclude.size() != image.size()))
+}
+
+void check_exclude(const cv::Mat& exclude, const cv::Size& image_size) {
+  if (!exclude.empty() && (exclude.type() != CV_8UC1 || exclude.size() != image_size))
     throw std::invalid_argument("OrbExtractor::extract: exclude mask must be empty or CV_8UC1 "
                                 "of the image size");
-  if (count) {
-    count->corners = count->keypoints = 0;
-    if (exclude.empty() || count->region.type() != CV_8UC1 || count->region.size() != image.size()) count = nullptr;
-  }
+}
 
+// The FAST area of a level: [b, max_x) x [b, max_y), b = EDGE_THRESHOLD - 3,
+// so corners lie at least EDGE_THRESHOLD px inside the level (room for the
+// 31x31 rotated patch); det_w x det_h pixels can hold a corner.
+struct LevelArea {
+  int b, max_x, max_y, det_w, det_h;
+  explicit LevelArea(const cv::Mat& img)
+      : b(kEdgeThreshold - kFastMargin), max_x(img.cols - b), max_y(img.rows - b),
+        det_w(max_x - b - 2 * kFastMargin), det_h(max_y - b - 2 * kFastMargin) {}
+  bool usable() const { return det_w >= 1 && det_h >= 1; }
+};
+}  // namespace
+
+void OrbExtractor::extract(const cv::Mat& image, const cv::Mat& exclude,
+                           std::vector<cv::KeyPoint>& keypoints, cv::Mat& descriptors, ExcludedCount* count) {
+  check_image(image);
+  check_exclude(exclude, image.size());
+  describe(detect(image), exclude, keypoints, descriptors, count);
+}
+
+OrbDetection OrbExtractor::detect(const cv::Mat& image) const {
+  check_image(image);
   // 1. Pyramid. Each level is resized from the previous one (bilinear), as
   // ORB-SLAM2 does, to the size of level 0 divided by s^i. Fresh buffers every
   // call: pyramids handed out earlier stay valid.
   const int L = n_levels();
-  pyramid_.assign(L, cv::Mat());
-  pyramid_[0] = image.clone();
+  OrbDetection d;
+  d.pyramid.assign(L, cv::Mat());
+  d.blurred.assign(L, cv::Mat());
+  d.corners.assign(L, {});
+  d.pyramid[0] = image.clone();
   for (int i = 1; i < L; ++i) {
     const cv::Size sz(cvRound(image.cols * inv_scale_[i]), cvRound(image.rows * inv_scale_[i]));
     if (sz.width < 1 || sz.height < 1) {
-      pyramid_[i] = cv::Mat(std::max(sz.height, 1), std::max(sz.width, 1), CV_8UC1, cv::Scalar(0));
+      d.pyramid[i] = cv::Mat(std::max(sz.height, 1), std::max(sz.width, 1), CV_8UC1, cv::Scalar(0));
       continue;
     }
-    cv::resize(pyramid_[i - 1], pyramid_[i], sz, 0, 0, cv::INTER_LINEAR);
+    cv::resize(d.pyramid[i - 1], d.pyramid[i], sz, 0, 0, cv::INTER_LINEAR);
   }
 
   Scratch& s = t_scratch;
-  s.level_kps.resize(L);
-  int total = 0;
   for (int level = 0; level < L; ++level) {
-    std::vector<cv::KeyPoint>& out = s.level_kps[level];
-    out.clear();
-    const cv::Mat& img = pyramid_[level];
-    // FAST runs on [b, max - b), b = EDGE_THRESHOLD - 3, so corners lie at least
-    // EDGE_THRESHOLD px inside the level (room for the 31x31 rotated patch).
-    const int b = kEdgeThreshold - kFastMargin;
-    const int max_x = img.cols - b, max_y = img.rows - b;
-    const int det_w = max_x - b - 2 * kFastMargin, det_h = max_y - b - 2 * kFastMargin;
-    if (det_w < 1 || det_h < 1 || features_per_level_[level] == 0) continue;
+    const cv::Mat& img = d.pyramid[level];
+    const LevelArea a(img);
+    if (!a.usable()) continue;
+    const int b = a.b, max_x = a.max_x, max_y = a.max_y;
 
     // 2. FAST with the initial threshold over the whole detection area, then
     // binned in ~30x30 cells; cells with no corner are searched again with the
     // minimum threshold (ORB-SLAM's per-cell iniThFAST/minThFAST rule).
-    std::vector<cv::KeyPoint>& cand = s.candidates;
-    cand.clear();
+    std::vector<cv::KeyPoint>& cand = d.corners[level];
     cv::FAST(img(cv::Rect(b, b, max_x - b, max_y - b)), cand, settings_.ini_th_fast, true);
-    const int n_cols = std::max(1, det_w / kCellSize), n_rows = std::max(1, det_h / kCellSize);
-    const int cell_w = (det_w + n_cols - 1) / n_cols, cell_h = (det_h + n_rows - 1) / n_rows;
+    const int n_cols = std::max(1, a.det_w / kCellSize), n_rows = std::max(1, a.det_h / kCellSize);
+    const int cell_w = (a.det_w + n_cols - 1) / n_cols, cell_h = (a.det_h + n_rows - 1) / n_rows;
     const int x0 = b + kFastMargin, y0 = b + kFastMargin;  // first detectable pixel
     s.cell_found.assign(static_cast<size_t>(n_cols) * n_rows, 0);
     for (cv::KeyPoint& k : cand) {
@@ -227,6 +242,35 @@ void OrbExtractor::extract(const cv::Mat& image, const cv::Mat& exclude,
         }
       }
     }
+    // The descriptors' image: the level blurred by a 7x7 Gaussian (sigma 2).
+    cv::GaussianBlur(img, d.blurred[level], cv::Size(7, 7), 2, 2, cv::BORDER_REFLECT_101);
+  }
+  return d;
+}
+
+void OrbExtractor::describe(OrbDetection&& d, const cv::Mat& exclude, std::vector<cv::KeyPoint>& keypoints,
+                            cv::Mat& descriptors, ExcludedCount* count) {
+  const int L = n_levels();
+  if (static_cast<int>(d.pyramid.size()) != L || static_cast<int>(d.blurred.size()) != L ||
+      static_cast<int>(d.corners.size()) != L || d.pyramid[0].empty())
+    throw std::invalid_argument("OrbExtractor::describe: the detection is not one of this extractor's");
+  check_exclude(exclude, d.pyramid[0].size());
+  if (count) {
+    count->corners = count->keypoints = 0;
+    if (exclude.empty() || count->region.type() != CV_8UC1 || count->region.size() != exclude.size()) count = nullptr;
+  }
+
+  Scratch& s = t_scratch;
+  s.level_kps.resize(L);
+  int total = 0;
+  for (int level = 0; level < L; ++level) {
+    std::vector<cv::KeyPoint>& out = s.level_kps[level];
+    out.clear();
+    const cv::Mat& img = d.pyramid[level];
+    const LevelArea a(img);
+    if (!a.usable() || features_per_level_[level] == 0) continue;
+    const int b = a.b, max_x = a.max_x, max_y = a.max_y;
+    std::vector<cv::KeyPoint>& cand = d.corners[level];
 
     // 3a. Drop the corners whose level-0 position is excluded.
     const float sc = scale_[level];
@@ -269,9 +313,10 @@ void OrbExtractor::extract(const cv::Mat& image, const cv::Mat& exclude,
     }
     total += static_cast<int>(out.size());
   }
+  pyramid_ = std::move(d.pyramid);
 
-  // 5. Descriptors on the level blurred by a 7x7 Gaussian (sigma 2), then the
-  // keypoints go to level-0 coordinates.
+  // 5. Descriptors on the blurred level, then the keypoints go to level-0
+  // coordinates.
   keypoints.clear();
   keypoints.reserve(total);
   descriptors = cv::Mat(total, kDescriptorBytes, CV_8U);
@@ -279,10 +324,9 @@ void OrbExtractor::extract(const cv::Mat& image, const cv::Mat& exclude,
   for (int level = 0; level < L; ++level) {
     const std::vector<cv::KeyPoint>& kps = s.level_kps[level];
     if (kps.empty()) continue;
-    cv::GaussianBlur(pyramid_[level], s.blurred, cv::Size(7, 7), 2, 2, cv::BORDER_REFLECT_101);
     const float sc = scale_[level];
     for (const cv::KeyPoint& k : kps) {
-      describe(s.blurred, cvRound(k.pt.x), cvRound(k.pt.y), k.angle, descriptors.ptr<uchar>(row++));
+      describe_keypoint(d.blurred[level], cvRound(k.pt.x), cvRound(k.pt.y), k.angle, descriptors.ptr<uchar>(row++));
       cv::KeyPoint k0 = k;
       k0.pt *= sc;
       keypoints.push_back(k0);

@@ -337,6 +337,8 @@ PYBIND11_MODULE(_core, m) {
       }, py::arg("sensor"), "InputError when a stage is unknown or does not support the sensor.")
       .def_readwrite("keyframes", &dynamic::DynamicFilterOptions::keyframes)
       .def_readwrite("all_dynamic_fraction", &dynamic::DynamicFilterOptions::all_dynamic_fraction)
+      .def_readwrite("overlap_extraction", &dynamic::DynamicFilterOptions::overlap_extraction,
+                     "1: the filter runs beside the ORB corner detection; 0: before it; -1: by sensor and cores.")
       .def_readwrite("movable_classes", &dynamic::DynamicFilterOptions::movable_classes,
                      "Non-empty: the semantic stage's movable class ids (the label source's own set).");
   m.def("dynamic_stages", &dynamic::registered_stages, "Names of the dynamic-filter stages a preset may list.");

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <chrono>
 #include <future>
+#include <utility>
 #include <opencv2/calib3d.hpp>
 
 #include "dynaorb/features/stereo_matcher.h"
@@ -50,6 +51,28 @@ std::shared_ptr<map::Features> FrameBuilder::extract(features::OrbExtractor& ext
   return f;
 }
 
+std::shared_ptr<map::Features> FrameBuilder::extract(features::OrbExtractor& extractor,
+                                                     const cv::Mat& grey, const ExclusionSource& exclude,
+                                                     StageTimes& t, features::ExcludedCount* count) {
+  auto f = std::make_shared<map::Features>();
+  f->calib = calib_;
+  double detect_ms = 0;
+  auto detection = std::async(std::launch::async, [&extractor, &grey, &detect_ms] {
+    const auto t0 = Clock::now();
+    features::OrbDetection d = extractor.detect(grey);
+    detect_ms = ms_since(t0);
+    return d;
+  });
+  const cv::Mat mask = exclude();
+  const auto t1 = Clock::now();
+  extractor.describe(detection.get(), mask, f->keys, f->descriptors, count);
+  t["extract"] = ms_since(t1);
+  t["extract_overlapped"] = detect_ms;
+  f->u_right.assign(f->keys.size(), -1.0f);
+  f->depth.assign(f->keys.size(), -1.0f);
+  return f;
+}
+
 void FrameBuilder::finish(map::Features& f) const {
   f.keys_un = f.keys;
   if (!calib_->dist.empty() && !f.keys.empty()) {
@@ -63,6 +86,14 @@ void FrameBuilder::finish(map::Features& f) const {
 }
 
 std::shared_ptr<const map::Features> FrameBuilder::mono(const cv::Mat& grey, const cv::Mat& exclude,
+                                                        StageTimes& t, bool initializing,
+                                                        features::ExcludedCount* count) {
+  auto f = extract(initializing ? init_ : left_, grey, exclude, t, count);
+  finish(*f);
+  return f;
+}
+
+std::shared_ptr<const map::Features> FrameBuilder::mono(const cv::Mat& grey, const ExclusionSource& exclude,
                                                         StageTimes& t, bool initializing,
                                                         features::ExcludedCount* count) {
   auto f = extract(initializing ? init_ : left_, grey, exclude, t, count);
@@ -84,37 +115,85 @@ std::shared_ptr<const map::Features> FrameBuilder::stereo(const cv::Mat& left, c
   left_.extract(left, exclude, f->keys, f->descriptors, count);
   right_job.get();
   t["extract"] = ms_since(t0);
+  match_stereo(*f, keys_r, desc_r, t);
+  return f;
+}
 
+std::shared_ptr<const map::Features> FrameBuilder::stereo(const cv::Mat& left, const cv::Mat& right,
+                                                          const ExclusionSource& exclude, StageTimes& t,
+                                                          features::ExcludedCount* count) {
+  auto f = std::make_shared<map::Features>();
+  f->calib = calib_;
+  std::vector<cv::KeyPoint> keys_r;
+  cv::Mat desc_r;
+  // Both images' detection on one worker thread while this one computes the
+  // mask; then the right image is described on a second thread while this
+  // one does the left.
+  double detect_ms = 0;
+  auto detection = std::async(std::launch::async, [&] {
+    const auto t0 = Clock::now();
+    std::pair<features::OrbDetection, features::OrbDetection> d(left_.detect(left), right_.detect(right));
+    detect_ms = ms_since(t0);
+    return d;
+  });
+  const cv::Mat mask = exclude();
+  const auto t1 = Clock::now();
+  auto [detected_l, detected_r] = detection.get();
+  right_.set_n_features(right_budget(mask));
+  auto right_job = std::async(std::launch::async, [&, d = std::move(detected_r)]() mutable {
+    right_.describe(std::move(d), cv::Mat(), keys_r, desc_r);
+  });
+  left_.describe(std::move(detected_l), mask, f->keys, f->descriptors, count);
+  right_job.get();
+  t["extract"] = ms_since(t1);
+  t["extract_overlapped"] = detect_ms;
+  match_stereo(*f, keys_r, desc_r, t);
+  return f;
+}
+
+void FrameBuilder::match_stereo(map::Features& f, const std::vector<cv::KeyPoint>& keys_r, const cv::Mat& desc_r,
+                                StageTimes& t) const {
   const auto t1 = Clock::now();
   features::StereoMatchOptions opt;
   opt.bf = calib_->bf;
   opt.fx = calib_->fx;
-  features::StereoMatches m = features::match_stereo(f->keys, f->descriptors, keys_r, desc_r, left_.pyramid(),
+  features::StereoMatches m = features::match_stereo(f.keys, f.descriptors, keys_r, desc_r, left_.pyramid(),
                                                      right_.pyramid(), left_.scale_factors(), opt);
-  f->u_right = std::move(m.u_right);
-  f->depth = std::move(m.depth);
+  f.u_right = std::move(m.u_right);
+  f.depth = std::move(m.depth);
   t["stereo_matching"] = ms_since(t1);
-  finish(*f);
-  return f;
+  finish(f);
 }
 
 std::shared_ptr<const map::Features> FrameBuilder::rgbd(const cv::Mat& grey, const cv::Mat& depth,
                                                         const cv::Mat& exclude, StageTimes& t,
                                                         features::ExcludedCount* count) {
   auto f = extract(left_, grey, exclude, t, count);
-  finish(*f);
+  add_depth(*f, depth);
+  return f;
+}
+
+std::shared_ptr<const map::Features> FrameBuilder::rgbd(const cv::Mat& grey, const cv::Mat& depth,
+                                                        const ExclusionSource& exclude, StageTimes& t,
+                                                        features::ExcludedCount* count) {
+  auto f = extract(left_, grey, exclude, t, count);
+  add_depth(*f, depth);
+  return f;
+}
+
+void FrameBuilder::add_depth(map::Features& f, const cv::Mat& depth) const {
+  finish(f);
   // Depth at the detected (distorted) pixel; the virtual right coordinate
   // from the undistorted one (ORB-SLAM2's ComputeStereoFromRGBD).
-  for (size_t i = 0; i < f->keys.size(); ++i) {
-    const int u = cvRound(f->keys[i].pt.x), v = cvRound(f->keys[i].pt.y);
+  for (size_t i = 0; i < f.keys.size(); ++i) {
+    const int u = cvRound(f.keys[i].pt.x), v = cvRound(f.keys[i].pt.y);
     if (u < 0 || v < 0 || u >= depth.cols || v >= depth.rows) continue;
     const float d = depth.at<float>(v, u);
     if (d > 0) {
-      f->depth[i] = d;
-      f->u_right[i] = static_cast<float>(f->keys_un[i].pt.x - calib_->bf / d);
+      f.depth[i] = d;
+      f.u_right[i] = static_cast<float>(f.keys_un[i].pt.x - calib_->bf / d);
     }
   }
-  return f;
 }
 
 }  // namespace dynaorb::tracking

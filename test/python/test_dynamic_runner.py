@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
+from conftest import REPO
 from dynaorb.runner import RunOptions, dynamic_presets, run_dataset
 
 VOC_MOVABLE = (1, 2, 3, 4, 6, 7, 8, 10, 12, 13, 14, 15, 17, 19)
@@ -96,6 +97,29 @@ def test_stereo_full_preset(tmp_path, synth_stereo):
     assert dyn["stage_failures"] == 0
     assert len(list(masks.iterdir())) == stats["frames"] == 6
     assert "dynamic.stdyn" in dyn["summary"]["stage_ms_median"]
+
+
+@pytest.mark.parametrize("sensor", ["rgbd", "stereo"])
+def test_filter_beside_the_corner_detection_changes_no_result(tmp_path, sensor, synth_rgbd, synth_stereo):
+    # Dynamic.overlap_extraction 1 runs the filter while a worker thread
+    # detects the ORB corners, 0 runs it first: the same features, so the same
+    # (synchronous, repeatable) run.
+    kind, seq = ("tum", synth_rgbd) if sensor == "rgbd" else ("kitti", synth_stereo / "sequences" / "00")
+    full = (REPO / "config" / "dynamic" / "full.yaml").read_text()
+    runs = {}
+    for overlap in (0, 1):
+        preset = tmp_path / f"full_{overlap}.yaml"
+        preset.write_text(full + f"\nDynamic.overlap_extraction: {overlap}\n")
+        out = tmp_path / f"o{overlap}"
+        stats = run_dataset(RunOptions(kind=kind, path=str(seq), out=str(out), dynamic=str(preset),
+                                       labels=str(seq / "labels"), progress=False))
+        assert stats["tracked_fraction"] == 1.0
+        runs[overlap] = ((out / "trajectory.tum").read_text(),
+                         [f["dynamic_keypoints"] for f in stats["dynamic_filter"]["per_frame"]],
+                         stats["stage_ms_median"])
+    assert runs[0][0] == runs[1][0]
+    assert runs[0][1] == runs[1][1] and sum(runs[1][1]) > 0
+    assert "extract_overlapped" in runs[1][2] and "extract_overlapped" not in runs[0][2]
 
 
 def test_cli_dynamic_run_and_errors(tmp_path, synth_rgbd):

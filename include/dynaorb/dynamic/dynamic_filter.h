@@ -50,6 +50,18 @@ struct DynamicFilterOptions {
   // Non-empty: the semantic stage's movable ids, whatever the preset says (the
   // label source knows its label set: labels.json, a model card).
   std::vector<int> movable_classes;
+  // Ours: whether the System runs the filter on the tracking thread while a
+  // worker thread detects the frame's ORB corners (OrbExtractor::detect; the
+  // filter's mask only decides which of them are kept and described, so the
+  // features are the same). 1: always; 0: never (the filter, then the
+  // extraction); -1 (auto): with at least 2 hardware threads for mono and
+  // RGB-D, at least 4 for stereo. Measured on 2 cores (`full`, `dynaorb synth`
+  // sequences with 3 movers, asynchronous mapping, 3 interleaved runs): the
+  // track call 36.3 -> 33.0 ms (mono) and 38.0 -> 34.4 ms (RGB-D); stereo
+  // 33.4 -> 35.0 ms, as its filter and its two-image extraction already keep
+  // both cores busy (stereo on 4 or more cores: not measured here).
+  int overlap_extraction = -1;
+  bool overlaps_extraction(Sensor sensor, unsigned hardware_threads) const;
 
   // Reads a preset file; InputError naming the file and the key for a missing
   // Dynamic.stages, an unknown stage, an unknown Dynamic.* key, an unknown or

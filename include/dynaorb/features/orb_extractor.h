@@ -23,6 +23,17 @@ struct ExcludedCount {
   int keypoints = 0;
 };
 
+// The part of an extraction that neither the exclusion mask nor the keypoint
+// budget changes: the scale pyramid, each level's FAST corners (with the
+// per-cell fallback) and the blurred levels the descriptors sample. Made by
+// OrbExtractor::detect, which may run on another thread while the mask is
+// being computed; OrbExtractor::describe finishes the extraction.
+struct OrbDetection {
+  std::vector<cv::Mat> pyramid;                    // level 0 = a copy of the image
+  std::vector<cv::Mat> blurred;                    // 7x7 Gaussian, sigma 2, per level
+  std::vector<std::vector<cv::KeyPoint>> corners;  // per level, in level pixels
+};
+
 class OrbExtractor {
  public:
   explicit OrbExtractor(const ExtractorSettings& settings);
@@ -35,6 +46,13 @@ class OrbExtractor {
   // (optional): what the exclusion cost inside count->region.
   void extract(const cv::Mat& image, const cv::Mat& exclude, std::vector<cv::KeyPoint>& keypoints,
                cv::Mat& descriptors, ExcludedCount* count = nullptr);
+  // extract() in two steps, with the same result: detect() reads only the
+  // image and the pyramid settings (safe on any thread, beside set_n_features
+  // and describe on this extractor); describe() applies the exclusion mask
+  // and the budget in force when it is called.
+  OrbDetection detect(const cv::Mat& image) const;
+  void describe(OrbDetection&& detection, const cv::Mat& exclude, std::vector<cv::KeyPoint>& keypoints,
+                cv::Mat& descriptors, ExcludedCount* count = nullptr);
 
   // The keypoint budget of later extractions (nFeatures), spread over the
   // levels as at construction.

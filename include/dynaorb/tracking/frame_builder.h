@@ -2,6 +2,7 @@
 // Turns images into Features: ORB extraction (left and right in parallel for
 // stereo), keypoint undistortion, stereo matching along rectified rows or the
 // RGB-D virtual right coordinate from depth, and the search grid.
+#include <functional>
 #include <map>
 #include <memory>
 #include <opencv2/core.hpp>
@@ -13,6 +14,12 @@
 namespace dynaorb::tracking {
 
 using StageTimes = std::map<std::string, double>;
+
+// Computes the exclusion mask (e.g. runs the dynamic filter) on the calling
+// thread while the mask-independent part of the extraction
+// (OrbExtractor::detect: pyramids, FAST corners, blurred levels) runs on a
+// worker thread. It may set the count's region before returning.
+using ExclusionSource = std::function<cv::Mat()>;
 
 class FrameBuilder {
  public:
@@ -40,12 +47,32 @@ class FrameBuilder {
                                             const cv::Mat& exclude, StageTimes& t,
                                             features::ExcludedCount* count = nullptr);
 
+  // The same with the mask from `exclude`, computed beside the detection:
+  // the same features as with that mask given up front. Stage times:
+  // "extract" is what the extraction adds after the mask is known (waiting
+  // for the detection, then describing), "extract_overlapped" the detection's
+  // own time on the worker.
+  std::shared_ptr<const map::Features> mono(const cv::Mat& grey, const ExclusionSource& exclude, StageTimes& t,
+                                            bool initializing = false, features::ExcludedCount* count = nullptr);
+  std::shared_ptr<const map::Features> stereo(const cv::Mat& left, const cv::Mat& right,
+                                              const ExclusionSource& exclude, StageTimes& t,
+                                              features::ExcludedCount* count = nullptr);
+  std::shared_ptr<const map::Features> rgbd(const cv::Mat& grey, const cv::Mat& depth,
+                                            const ExclusionSource& exclude, StageTimes& t,
+                                            features::ExcludedCount* count = nullptr);
   const std::shared_ptr<const map::Calibration>& calib() const { return calib_; }
 
  private:
   std::shared_ptr<map::Features> extract(features::OrbExtractor& extractor, const cv::Mat& grey,
                                          const cv::Mat& exclude, StageTimes& t, features::ExcludedCount* count);
+  std::shared_ptr<map::Features> extract(features::OrbExtractor& extractor, const cv::Mat& grey,
+                                         const ExclusionSource& exclude, StageTimes& t,
+                                         features::ExcludedCount* count);
   void finish(map::Features& f) const;  // undistortion and grid
+  // Stereo matching against the right keypoints, then finish().
+  void match_stereo(map::Features& f, const std::vector<cv::KeyPoint>& keys_r, const cv::Mat& desc_r,
+                    StageTimes& t) const;
+  void add_depth(map::Features& f, const cv::Mat& depth) const;  // RGB-D: finish(), then depth per keypoint
   int right_budget(const cv::Mat& exclude) const;
 
   std::shared_ptr<const map::Calibration> calib_;

@@ -285,6 +285,45 @@ TEST(OrbExtractor, ExcludeMaskMovesTheBudgetElsewhere) {
   for (size_t i = 0; i < all.size(); ++i) EXPECT_EQ(same[i].pt, all[i].pt);
 }
 
+// detect() then describe() gives extract()'s keypoints and descriptors, with
+// the mask and the budget given only to describe() (the tracking thread
+// computes the mask while another thread detects), and the same count.
+TEST(OrbExtractor, DetectThenDescribeIsExtract) {
+  DYNAORB_REQUIRE_SHARED();
+  const cv::Mat img = kitti_image();
+  ASSERT_FALSE(img.empty());
+  cv::Mat exclude = cv::Mat::zeros(img.size(), CV_8U);
+  exclude(cv::Rect(300, 50, 400, 250)).setTo(255);
+  features::ExcludedCount c1, c2;
+  c1.region = c2.region = exclude;
+  OrbExtractor one(settings(2000)), two(settings(1000));
+  std::vector<cv::KeyPoint> k1, k2;
+  cv::Mat d1, d2;
+  one.extract(img, exclude, k1, d1, &c1);
+  features::OrbDetection det = two.detect(img);
+  two.set_n_features(2000);  // the budget in force at describe() counts
+  two.describe(std::move(det), exclude, k2, d2, &c2);
+  ASSERT_EQ(k1.size(), k2.size());
+  ASSERT_GT(k1.size(), 1500u);
+  for (size_t i = 0; i < k1.size(); ++i) {
+    EXPECT_EQ(k1[i].pt, k2[i].pt);
+    EXPECT_EQ(k1[i].octave, k2[i].octave);
+    EXPECT_EQ(k1[i].angle, k2[i].angle);
+  }
+  EXPECT_EQ(cv::norm(d1, d2, cv::NORM_HAMMING), 0.0);
+  EXPECT_GT(c1.keypoints, 100);
+  EXPECT_EQ(c1.keypoints, c2.keypoints);
+  EXPECT_EQ(c1.corners, c2.corners);
+  for (size_t l = 0; l < one.pyramid().size(); ++l)
+    EXPECT_EQ(cv::norm(one.pyramid()[l], two.pyramid()[l], cv::NORM_INF), 0.0);
+  // A detection of another pyramid, or a mask of another size, is refused.
+  ExtractorSettings fewer = settings(1000);
+  fewer.n_levels = 4;
+  EXPECT_THROW(two.describe(OrbExtractor(fewer).detect(img), cv::Mat(), k2, d2), std::invalid_argument);
+  EXPECT_THROW(two.describe(two.detect(img), cv::Mat(10, 10, CV_8U), k2, d2), std::invalid_argument);
+  EXPECT_THROW(two.detect(cv::Mat()), std::invalid_argument);
+}
+
 TEST(OrbExtractor, KeepsEarlierPyramidsIntact) {
   DYNAORB_REQUIRE_SHARED();
   const cv::Mat img = euroc_image();

@@ -2,11 +2,13 @@
 // right image's budget follows the mask (TrackerOptions::
 // stereo_right_budget_max_factor), so the share of left keypoints with a
 // right match stays near the unmasked frame's; without a mask nothing changes.
+// A mask computed beside the detection gives the same features.
 #include <gtest/gtest.h>
 
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <opencv2/core.hpp>
 
 #include "../test_util.h"
@@ -57,6 +59,58 @@ TEST(FrameBuilder, RightBudgetFollowsTheExclusionMask) {
   EXPECT_EQ(fixed.keypoints, follows.keypoints);
   EXPECT_GT(share(follows), share(fixed) + 0.03);
   EXPECT_GT(share(follows), share(plain) - 0.05);
+}
+
+// The exclusion mask computed beside the detection (ExclusionSource, as the
+// System does with the dynamic filter) gives the features of the same mask
+// given up front, for stereo and mono; the source runs on the calling thread.
+TEST(FrameBuilder, AMaskComputedBesideTheDetectionGivesTheSameFeatures) {
+  DYNAORB_REQUIRE_SHARED();
+  auto provider = open_dataset("kitti", (test::shared_data() / "kitti/sequences/06").string());
+  const Settings settings = provider->default_settings();
+  const dynaorb::Frame f = provider->load(0);
+  cv::Mat exclude = cv::Mat::zeros(f.image.size(), CV_8UC1);
+  exclude(cv::Rect(300, 0, 460, f.image.rows)).setTo(255);
+  const auto calib = map::Calibration::make(settings, Sensor::kStereo, f.image.cols, f.image.rows);
+  tracking::FrameBuilder up_front(settings, calib, 2, 2.0), beside(settings, calib, 2, 2.0);
+  const auto caller = std::this_thread::get_id();
+  std::thread::id source_thread;
+  features::ExcludedCount c1, c2;
+  c1.region = exclude;
+  const tracking::ExclusionSource source = [&] {
+    source_thread = std::this_thread::get_id();
+    c2.region = exclude;
+    return exclude;
+  };
+  const auto same = [](const map::Features& a, const map::Features& b) {
+    ASSERT_EQ(a.size(), b.size());
+    for (int i = 0; i < a.size(); ++i) {
+      EXPECT_EQ(a.keys[i].pt, b.keys[i].pt);
+      EXPECT_EQ(a.keys_un[i].pt, b.keys_un[i].pt);
+      EXPECT_EQ(a.u_right[i], b.u_right[i]);
+      EXPECT_EQ(a.depth[i], b.depth[i]);
+    }
+    EXPECT_EQ(cv::norm(a.descriptors, b.descriptors, cv::NORM_HAMMING), 0.0);
+  };
+  tracking::StageTimes t1, t2;
+  const auto s1 = up_front.stereo(f.image, f.right, exclude, t1, &c1);
+  const auto s2 = beside.stereo(f.image, f.right, source, t2, &c2);
+  EXPECT_EQ(source_thread, caller);
+  same(*s1, *s2);
+  int with_depth = 0;
+  for (int i = 0; i < s2->size(); ++i) with_depth += s2->has_depth(i);
+  EXPECT_GT(with_depth, 500);
+  EXPECT_GT(c1.keypoints, 100);
+  EXPECT_EQ(c1.keypoints, c2.keypoints);
+  EXPECT_GT(t2.at("extract_overlapped"), 0.0);
+  EXPECT_EQ(t2.count("stereo_matching"), 1u);
+
+  source_thread = std::thread::id();
+  const auto m1 = up_front.mono(f.image, exclude, t1, false, &c1);
+  const auto m2 = beside.mono(f.image, source, t2, false, &c2);
+  EXPECT_EQ(source_thread, caller);
+  same(*m1, *m2);
+  EXPECT_EQ(c1.keypoints, c2.keypoints);
 }
 
 // A mask of the wrong type or size is refused with the extractor's message,
