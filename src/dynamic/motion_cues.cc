@@ -32,6 +32,7 @@ void MotionCueOptions::read(const cv::FileNode& node) {
   read_option(node, "lk_epsilon", lk_epsilon);
   read_option(node, "forward_backward_max", forward_backward_max);
   read_option(node, "forward_backward_max_rgbd", forward_backward_max_rgbd);
+  read_option(node, "forward_backward_max_mono", forward_backward_max_mono);
   read_option(node, "stereo_depth_forward_backward_max", stereo_depth_forward_backward_max);
   read_option(node, "border", border);
   read_option(node, "depth_edge_radius", depth_edge_radius);
@@ -287,6 +288,12 @@ bool wants_stereo_depth(const FrameData& f, const map::Calibration& calib, Senso
 
 }  // namespace
 
+double MotionCueOptions::forward_backward_max_for(Sensor sensor) const {
+  if (sensor == Sensor::kRGBD && forward_backward_max_rgbd >= 0) return forward_backward_max_rgbd;
+  if (sensor == Sensor::kMono && forward_backward_max_mono >= 0) return forward_backward_max_mono;
+  return forward_backward_max;
+}
+
 void detect_corners_ahead(const FrameData& frame, const map::Calibration& calib, Sensor sensor,
                           const MotionCueOptions& o, MotionCueCache& cache) {
   cache.corners_image = std::move(cache.next_corners_image);
@@ -341,8 +348,7 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
     }
 
     t0 = Clock::now();
-    const double fb_max = sensor == Sensor::kRGBD && o.forward_backward_max_rgbd >= 0 ? o.forward_backward_max_rgbd
-                                                                                       : o.forward_backward_max;
+    const double fb_max = o.forward_backward_max_for(sensor);
     const auto inside = [&](size_t, const cv::Point2f& p) { return away_from_edge(p, size, border); };
     const Flow flow = track_forward_backward(prev_pyramid, cur_pyramid, corners, o, fb_max, inside);
     std::vector<cv::Point2f> kept_prev, kept_cur;

@@ -52,9 +52,11 @@ struct MotionCueOptions {
   // Ours: a track is kept only when tracking the current point back lands
   // within this many pixels of where it started (rejects occlusions and drift).
   // <= 0: no backward tracking (DS-SLAM's code has none), half the LK cost.
-  // `forward_backward_max_rgbd` for RGB-D frames when >= 0 (else the first).
+  // `forward_backward_max_rgbd` for RGB-D frames and `forward_backward_max_mono`
+  // for monocular ones when >= 0 (else the first): forward_backward_max_for.
   double forward_backward_max = 1.0;  // px
   double forward_backward_max_rgbd = -1;
+  double forward_backward_max_mono = -1;
   // The same check for a corner's stereo match (LK along the row into the
   // right image, stereo_depths): ours, kept apart from the flow's, so the
   // flow can go without it while the depths keep it. <= 0: none.
@@ -78,6 +80,7 @@ struct MotionCueOptions {
 
   // Missing keys keep their defaults; keys are the member names.
   void read(const cv::FileNode& node);
+  double forward_backward_max_for(Sensor sensor) const;  // the backward-check bound for this sensor
 };
 
 // The corners of an image detected ahead, on another thread, and for a

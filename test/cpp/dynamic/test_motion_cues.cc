@@ -184,9 +184,10 @@ bool same_points(const std::vector<TrackedPoint>& a, const std::vector<TrackedPo
 
 // Without the backward check (forward_backward_max 0) every forward track
 // that stays inside the border is kept, at the same place: the checked
-// tracks are a subset. forward_backward_max_rgbd applies to RGB-D alone.
+// tracks are a subset. forward_backward_max_rgbd applies to RGB-D alone,
+// forward_backward_max_mono to monocular frames alone.
 TEST(MotionCues, BackwardCheckOnlyRemovesTracks) {
-  for (Sensor sensor : {Sensor::kRGBD, Sensor::kStereo}) {
+  for (Sensor sensor : {Sensor::kRGBD, Sensor::kStereo, Sensor::kMono}) {
     auto calib = make_calibration(sensor);
     Pair p = render_pair(*calib, sensor);
     const MotionCueOptions checked;
@@ -202,10 +203,14 @@ TEST(MotionCues, BackwardCheckOnlyRemovesTracks) {
       ASSERT_LT(k, b.size()) << "a checked track missing without the check";
       EXPECT_EQ(b[k].cur, t.cur);
     }
-    MotionCueOptions rgbd_only;
+    MotionCueOptions rgbd_only, mono_only;
     rgbd_only.forward_backward_max_rgbd = 0;
-    const auto c = track_points(p.prev, p.cur, *calib, sensor, rgbd_only);
-    EXPECT_EQ(c.size(), sensor == Sensor::kRGBD ? b.size() : a.size());
+    mono_only.forward_backward_max_mono = 0;
+    EXPECT_EQ(track_points(p.prev, p.cur, *calib, sensor, rgbd_only).size(),
+              sensor == Sensor::kRGBD ? b.size() : a.size());
+    EXPECT_EQ(track_points(p.prev, p.cur, *calib, sensor, mono_only).size(),
+              sensor == Sensor::kMono ? b.size() : a.size());
+    EXPECT_EQ(mono_only.forward_backward_max_for(sensor), sensor == Sensor::kMono ? 0.0 : 1.0);
   }
 }
 
@@ -488,7 +493,7 @@ TEST(MotionCues, DegenerateInputGivesNothingAndNeverThrows) {
 TEST(MotionCues, OptionsReadFromYaml) {
   cv::FileStorage fs(
       "%YAML:1.0\nmotion:\n  max_corners: 500\n  use_harris: 0\n  border: 5\n  forward_backward_max: 0.5\n"
-      "  forward_backward_max_rgbd: 0\n  stereo_depth_forward_backward_max: 0.25\n  max_background_corners: 200\n"
+      "  forward_backward_max_rgbd: 0\n  forward_backward_max_mono: 0.75\n  stereo_depth_forward_backward_max: 0.25\n  max_background_corners: 200\n"
       "bad:\n  max_corners: many\n",
       cv::FileStorage::READ | cv::FileStorage::MEMORY);
   MotionCueOptions o;
@@ -498,6 +503,7 @@ TEST(MotionCues, OptionsReadFromYaml) {
   EXPECT_EQ(o.border, 5);
   EXPECT_DOUBLE_EQ(o.forward_backward_max, 0.5);
   EXPECT_DOUBLE_EQ(o.forward_backward_max_rgbd, 0);
+  EXPECT_DOUBLE_EQ(o.forward_backward_max_mono, 0.75);
   EXPECT_DOUBLE_EQ(o.stereo_depth_forward_backward_max, 0.25);
   EXPECT_EQ(o.max_background_corners, 200);
   EXPECT_DOUBLE_EQ(o.quality_level, 0.01);  // missing: default kept
