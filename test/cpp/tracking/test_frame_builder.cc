@@ -34,6 +34,20 @@ Built build(const Settings& settings, const dynaorb::Frame& f, const cv::Mat& ex
   return b;
 }
 
+// KITTI 06 frame 0, its settings, and a mask over columns 300-759.
+struct Kitti06 {
+  Settings settings;
+  dynaorb::Frame frame;
+  cv::Mat exclude;
+  Kitti06() {
+    auto provider = open_dataset("kitti", (test::shared_data() / "kitti/sequences/06").string());
+    settings = provider->default_settings();
+    frame = provider->load(0);
+    exclude = cv::Mat::zeros(frame.image.size(), CV_8UC1);
+    exclude(cv::Rect(300, 0, 460, frame.image.rows)).setTo(255);
+  }
+};
+
 double share(const Built& b) { return static_cast<double>(b.with_depth) / b.keypoints; }
 
 // Measured (2000 features; mask over columns 300-759, 37.5 % of the image):
@@ -42,11 +56,10 @@ double share(const Built& b) { return static_cast<double>(b.with_depth) / b.keyp
 // 3200, 916 of 2004 (0.46).
 TEST(FrameBuilder, RightBudgetFollowsTheExclusionMask) {
   DYNAORB_REQUIRE_SHARED();
-  auto provider = open_dataset("kitti", (test::shared_data() / "kitti/sequences/06").string());
-  const Settings settings = provider->default_settings();
-  const dynaorb::Frame f = provider->load(0);
-  cv::Mat exclude = cv::Mat::zeros(f.image.size(), CV_8UC1);
-  exclude(cv::Rect(300, 0, 460, f.image.rows)).setTo(255);
+  const Kitti06 k;
+  const Settings& settings = k.settings;
+  const dynaorb::Frame& f = k.frame;
+  const cv::Mat& exclude = k.exclude;
 
   const Built plain = build(settings, f, cv::Mat(), 2.0), plain_fixed = build(settings, f, cv::Mat(), 1.0);
   const Built fixed = build(settings, f, exclude, 1.0), follows = build(settings, f, exclude, 2.0);
@@ -66,11 +79,10 @@ TEST(FrameBuilder, RightBudgetFollowsTheExclusionMask) {
 // given up front, for stereo and mono; the source runs on the calling thread.
 TEST(FrameBuilder, AMaskComputedBesideTheDetectionGivesTheSameFeatures) {
   DYNAORB_REQUIRE_SHARED();
-  auto provider = open_dataset("kitti", (test::shared_data() / "kitti/sequences/06").string());
-  const Settings settings = provider->default_settings();
-  const dynaorb::Frame f = provider->load(0);
-  cv::Mat exclude = cv::Mat::zeros(f.image.size(), CV_8UC1);
-  exclude(cv::Rect(300, 0, 460, f.image.rows)).setTo(255);
+  const Kitti06 k;
+  const Settings& settings = k.settings;
+  const dynaorb::Frame& f = k.frame;
+  const cv::Mat& exclude = k.exclude;
   const auto calib = map::Calibration::make(settings, Sensor::kStereo, f.image.cols, f.image.rows);
   tracking::FrameBuilder up_front(settings, calib, 2, 2.0), beside(settings, calib, 2, 2.0);
   const auto caller = std::this_thread::get_id();
