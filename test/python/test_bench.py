@@ -110,6 +110,40 @@ def test_resume_takes_finished_runs_from_their_folders(tiny_suite):
     assert json.loads((off / "record.json").read_text()) == third["records"][0]
 
 
+def test_the_peer_runs_beside_ours_sequence_by_sequence(tmp_path, monkeypatch):
+    """Run r of every case of a sequence, then the peer's run r on it: both systems' runs on one sequence are
+    made minutes apart, not a whole suite apart."""
+    from dynaorb.bench import suite_runner
+    from dynaorb.bench.suites import Case, Sequence
+
+    made = []
+
+    def fake(system, case, seq, run):
+        made.append((system, case, run))
+        return {"system": system, "case": case, "sequence": seq.name, "sensor": seq.sensor, "preset": "off",
+                "run": run, "error": "not run (test)"}
+
+    monkeypatch.setattr(suite_runner, "_ours_record", lambda case, run, out, opts:
+                        fake("dynaorb", case.key, case.sequence, run))
+    monkeypatch.setattr(suite_runner, "_peer_record", lambda seq, run, *a:
+                        fake("orbslam3", f"{seq.key}:orbslam3", seq, run))
+    monkeypatch.setattr(suite_runner, "_peer_setup", lambda opts, progress:
+                        {"python": pathlib.Path("/peer/python"), "vocabulary": "voc.txt", "status": {"status": "run"}})
+    monkeypatch.setattr(report, "write", lambda results, out: None)
+    a, b = (Sequence(f"synth/{n}", "kitti", f"/nowhere/{n}", "stereo") for n in ("a", "b"))
+    cases = [Case(a, "off"), Case(a, "dm"), Case(b, "off")]
+    results = suite_runner.run_suite(suite_runner.BenchOptions(out=str(tmp_path / "out"), runs=2),
+                                     suite=Suite("order", cases, [a, b], []), progress=lambda m: None)
+    assert made == [("dynaorb", "synth/a:stereo:off", 0), ("dynaorb", "synth/a:stereo:dm", 0),
+                    ("orbslam3", "synth/a:stereo:orbslam3", 0),
+                    ("dynaorb", "synth/a:stereo:off", 1), ("dynaorb", "synth/a:stereo:dm", 1),
+                    ("orbslam3", "synth/a:stereo:orbslam3", 1),
+                    ("dynaorb", "synth/b:stereo:off", 0), ("orbslam3", "synth/b:stereo:orbslam3", 0),
+                    ("dynaorb", "synth/b:stereo:off", 1), ("orbslam3", "synth/b:stereo:orbslam3", 1)]
+    assert [(r["system"], r["case"], r["run"]) for r in results["records"]] == made
+    assert results["peer"] == {"status": "run"} and results["finished"]
+
+
 def test_peer_failure_is_recorded_and_the_bench_goes_on(tmp_path, data):
     from dynaorb.bench.suite_runner import _peer_records
     from dynaorb.bench.suites import Sequence

@@ -5,10 +5,14 @@ False), as a live camera runs it; ms per frame is the tracking thread's
 frame_total median (its stages), and the wall time around the track call is
 kept beside it for the comparison with the peer, which is timed that way.
 The peer (ORB-SLAM3 through pyorbslam3) runs on each sequence N times in
-`off` terms: no dynamic filter.
+`off` terms: no dynamic filter. The runs go sequence by sequence and run by
+run: run r of each of the sequence's cases, then the peer's run r, so the
+two systems on one sequence are measured minutes apart, not a whole suite
+apart (this machine's speed moves by 15-30 % between sessions, and the
+peer, when its runs came last, moved more than ours).
 
 Writes OUT/results.json (every run, every number; rewritten after every
-case, so a bench stopped part way keeps what it measured, with "finished"
+run of a sequence, so a bench stopped part way keeps what it measured, with "finished"
 null), OUT/report.md and the plots (report.py); run folders under
 OUT/runs/<case>/<run>, each with its spec and record.json. With `resume` a
 run whose folder holds a record for the same spec is taken from there
@@ -151,36 +155,38 @@ def _metrics(stats: dict) -> dict:
     }
 
 
-def _peer_records(seq: Sequence, runs: int, root: pathlib.Path, python, vocabulary, timeout_s: float,
-                  resume: bool = False) -> list[dict]:
+def _peer_record(seq: Sequence, run: int, root: pathlib.Path, python, vocabulary, timeout_s: float,
+                 resume: bool = False) -> dict:
+    """One run of the peer on seq (its record, also written to its run folder)."""
     from dynaorb.peer import orbslam3
 
-    records = []
-    for run in range(runs):
-        out = root / "runs" / _slug(f"{seq.key}:orbslam3") / str(run)
-        spec = {"kind": seq.kind, "path": seq.path, "sensor": seq.sensor, "vocabulary": str(vocabulary)}
-        reused = _reused(out, "peer_spec.json", spec, resume)
-        if reused is not None:
-            records.append(reused)
-            continue
-        _start(out, "peer_spec.json", spec)
-        try:
-            stats = orbslam3.run(orbslam3.PeerCase(seq.kind, seq.path, seq.sensor, out), python, vocabulary,
-                                 timeout_s)
-        except Exception as exc:  # e.g. the sequence cannot be read for this sensor: recorded, the bench goes on
-            stats = {"error": f"{type(exc).__name__}: {exc}"}
-        record = {"system": "orbslam3", "case": f"{seq.key}:orbslam3", "sequence": seq.name, "sensor": seq.sensor,
-                  "preset": "off", "run": run, "out": str(out), "peak_rss_mb": stats.get("peak_rss_mb"),
-                  "process_wall_s": stats.get("wall_s")}
-        if "error" in stats:
-            record["error"] = stats["error"]
-        else:
-            record.update(_metrics(stats))
-            record["trajectory"] = str(out / "trajectory.tum")
-            record["stats"] = {k: stats.get(k) for k in ("frames", "tracked_frames", "states", "init_s", "exit",
-                                                          "pyorbslam3", "trajectory_poses")}
-        records.append(_keep(out, record))
-    return records
+    out = root / "runs" / _slug(f"{seq.key}:orbslam3") / str(run)
+    spec = {"kind": seq.kind, "path": seq.path, "sensor": seq.sensor, "vocabulary": str(vocabulary)}
+    reused = _reused(out, "peer_spec.json", spec, resume)
+    if reused is not None:
+        return reused
+    _start(out, "peer_spec.json", spec)
+    try:
+        stats = orbslam3.run(orbslam3.PeerCase(seq.kind, seq.path, seq.sensor, out), python, vocabulary,
+                             timeout_s)
+    except Exception as exc:  # e.g. the sequence cannot be read for this sensor: recorded, the bench goes on
+        stats = {"error": f"{type(exc).__name__}: {exc}"}
+    record = {"system": "orbslam3", "case": f"{seq.key}:orbslam3", "sequence": seq.name, "sensor": seq.sensor,
+              "preset": "off", "run": run, "out": str(out), "peak_rss_mb": stats.get("peak_rss_mb"),
+              "process_wall_s": stats.get("wall_s")}
+    if "error" in stats:
+        record["error"] = stats["error"]
+    else:
+        record.update(_metrics(stats))
+        record["trajectory"] = str(out / "trajectory.tum")
+        record["stats"] = {k: stats.get(k) for k in ("frames", "tracked_frames", "states", "init_s", "exit",
+                                                      "pyorbslam3", "trajectory_poses")}
+    return _keep(out, record)
+
+
+def _peer_records(seq: Sequence, runs: int, root: pathlib.Path, python, vocabulary, timeout_s: float,
+                  resume: bool = False) -> list[dict]:
+    return [_peer_record(seq, run, root, python, vocabulary, timeout_s, resume) for run in range(runs)]
 
 
 def machine() -> dict:
@@ -218,18 +224,32 @@ def run_suite(opts: BenchOptions, suite: Suite | None = None, progress=print) ->
                "vocabulary": opts.vocabulary, "not_run": list(suite.not_run),
                "sequences": [dataclasses.asdict(s) for s in suite.sequences], "records": [], "peer": None,
                "finished": None}
-    for case in suite.cases:
+    peer = _peer_setup(opts, progress)
+    results["peer"] = peer["status"]
+    # Sequence by sequence, run by run: run r of every case of a sequence,
+    # then the peer's run r on it, so both systems' runs on one sequence are
+    # minutes apart, not the whole suite apart (the machine's speed drifts).
+    in_suite = {seq.key for seq in suite.sequences}
+    order: dict[str, Sequence] = {}
+    for seq in [c.sequence for c in suite.cases] + list(suite.sequences):
+        order.setdefault(seq.key, seq)
+    for key, seq in order.items():
+        cases = [c for c in suite.cases if c.sequence.key == key]
+        with_peer = peer["python"] is not None and key in in_suite
         for run in range(opts.runs):
-            progress(f"dynaorb {case.key} run {run + 1}/{opts.runs}")
-            record = _ours_record(case, run, out / "runs" / _slug(case.key) / str(run), opts)
-            if record.get("error"):
-                progress(f"  failed: {record['error'].splitlines()[0]}")
-            results["records"].append(record)
-        _save(out, results)
-    if opts.peer:
-        results["peer"] = _run_peer(suite, opts, out, results, progress)
-    else:
-        results["peer"] = {"status": "skipped (--no-peer)"}
+            for case in cases:
+                progress(f"dynaorb {case.key} run {run + 1}/{opts.runs}")
+                record = _ours_record(case, run, out / "runs" / _slug(case.key) / str(run), opts)
+                if record.get("error"):
+                    progress(f"  failed: {record['error'].splitlines()[0]}")
+                results["records"].append(record)
+            if with_peer:
+                progress(f"orbslam3 {key} run {run + 1}/{opts.runs}")
+                record = _peer_record(seq, run, out, peer["python"], peer["vocabulary"], opts.timeout_s, opts.resume)
+                if record.get("error"):
+                    progress(f"  failed: {record['error'].splitlines()[0]}")
+                results["records"].append(record)
+            _save(out, results)
     results["finished"] = datetime.datetime.now().isoformat(timespec="seconds")
     _save(out, results)
     report.write(results, out)
@@ -243,21 +263,19 @@ def _save(out: pathlib.Path, results: dict) -> None:
     part.replace(out / "results.json")
 
 
-def _run_peer(suite: Suite, opts: BenchOptions, out: pathlib.Path, results: dict, progress) -> dict:
+def _peer_setup(opts: BenchOptions, progress) -> dict:
+    """The peer's venv and vocabulary, made before the first run ({"python": None} when it is not run),
+    and its status for results.json."""
     from dynaorb.peer import orbslam3
 
+    if not opts.peer:
+        return {"python": None, "status": {"status": "skipped (--no-peer)"}}
     try:
         python = orbslam3.ensure_venv(pathlib.Path(opts.peer_venv) if opts.peer_venv else None, log=progress)
         vocabulary = orbslam3.vocabulary_text(opts.vocabulary)
     except orbslam3.PeerUnavailable as exc:
         progress(f"peer not run: {exc}")
-        return {"status": f"not run: {exc}"}
-    for seq in suite.sequences:
-        progress(f"orbslam3 {seq.key} ({opts.runs} runs)")
-        for record in _peer_records(seq, opts.runs, out, python, vocabulary, opts.timeout_s, opts.resume):
-            if record.get("error"):
-                progress(f"  failed: {record['error'].splitlines()[0]}")
-            results["records"].append(record)
-        _save(out, results)
-    return {"status": "run", "package": orbslam3.PYORBSLAM3, "venv": str(python.parent.parent),
-            "vocabulary": str(vocabulary)}
+        return {"python": None, "status": {"status": f"not run: {exc}"}}
+    return {"python": python, "vocabulary": vocabulary,
+            "status": {"status": "run", "package": orbslam3.PYORBSLAM3, "venv": str(python.parent.parent),
+                       "vocabulary": str(vocabulary)}}
