@@ -145,7 +145,7 @@ def test_the_peer_runs_beside_ours_sequence_by_sequence(tmp_path, monkeypatch):
 
 
 def test_peer_failure_is_recorded_and_the_bench_goes_on(tmp_path, data):
-    from dynaorb.bench.suite_runner import _peer_records
+    from dynaorb.bench.suite_runner import _peer_record
     from dynaorb.bench.suites import Sequence
 
     mh05 = data / "euroc" / "MH_05_difficult_head"
@@ -153,7 +153,8 @@ def test_peer_failure_is_recorded_and_the_bench_goes_on(tmp_path, data):
         pytest.skip("MH_05 here has a right camera")
     # The sequence cannot be read for stereo: each run gets the error, nothing is raised.
     seq = Sequence("euroc/MH_05_difficult_head", "euroc", str(mh05), "stereo")
-    records = _peer_records(seq, 2, tmp_path, pathlib.Path("/nonexistent/python"), tmp_path / "voc.txt", 5.0)
+    records = [_peer_record(seq, run, tmp_path, pathlib.Path("/nonexistent/python"), tmp_path / "voc.txt", 5.0)
+               for run in range(2)]
     assert len(records) == 2 and all("no data for sensor 'stereo'" in r["error"] for r in records)
     assert all((tmp_path / "runs" / "euroc_MH_05_difficult_head_stereo_orbslam3" / str(i) / "record.json").is_file()
                for i in range(2))

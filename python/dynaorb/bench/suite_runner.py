@@ -12,8 +12,8 @@ apart (this machine's speed moves by 15-30 % between sessions, and the
 peer, when its runs came last, moved more than ours).
 
 Writes OUT/results.json (every run, every number; rewritten after every
-run of a sequence, so a bench stopped part way keeps what it measured, with "finished"
-null), OUT/report.md and the plots (report.py); run folders under
+run of a sequence, so a bench stopped part way keeps what it measured, with
+"finished" null), OUT/report.md and the plots (report.py); run folders under
 OUT/runs/<case>/<run>, each with its spec and record.json. With `resume` a
 run whose folder holds a record for the same spec is taken from there
 instead of being run again (its times are from when it ran).
@@ -184,11 +184,6 @@ def _peer_record(seq: Sequence, run: int, root: pathlib.Path, python, vocabulary
     return _keep(out, record)
 
 
-def _peer_records(seq: Sequence, runs: int, root: pathlib.Path, python, vocabulary, timeout_s: float,
-                  resume: bool = False) -> list[dict]:
-    return [_peer_record(seq, run, root, python, vocabulary, timeout_s, resume) for run in range(runs)]
-
-
 def machine() -> dict:
     info = {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count()}
     try:
@@ -233,22 +228,22 @@ def run_suite(opts: BenchOptions, suite: Suite | None = None, progress=print) ->
     order: dict[str, Sequence] = {}
     for seq in [c.sequence for c in suite.cases] + list(suite.sequences):
         order.setdefault(seq.key, seq)
+
+    def take(record: dict) -> None:
+        if record.get("error"):
+            progress(f"  failed: {record['error'].splitlines()[0]}")
+        results["records"].append(record)
+
     for key, seq in order.items():
         cases = [c for c in suite.cases if c.sequence.key == key]
         with_peer = peer["python"] is not None and key in in_suite
         for run in range(opts.runs):
             for case in cases:
                 progress(f"dynaorb {case.key} run {run + 1}/{opts.runs}")
-                record = _ours_record(case, run, out / "runs" / _slug(case.key) / str(run), opts)
-                if record.get("error"):
-                    progress(f"  failed: {record['error'].splitlines()[0]}")
-                results["records"].append(record)
+                take(_ours_record(case, run, out / "runs" / _slug(case.key) / str(run), opts))
             if with_peer:
                 progress(f"orbslam3 {key} run {run + 1}/{opts.runs}")
-                record = _peer_record(seq, run, out, peer["python"], peer["vocabulary"], opts.timeout_s, opts.resume)
-                if record.get("error"):
-                    progress(f"  failed: {record['error'].splitlines()[0]}")
-                results["records"].append(record)
+                take(_peer_record(seq, run, out, peer["python"], peer["vocabulary"], opts.timeout_s, opts.resume))
             _save(out, results)
     results["finished"] = datetime.datetime.now().isoformat(timespec="seconds")
     _save(out, results)
