@@ -16,6 +16,9 @@
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 #include <string>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "orb_pattern.h"
 #include "quadtree.h"
@@ -67,23 +70,59 @@ float ic_angle(const cv::Mat& img, int x, int y, const std::vector<int>& umax) {
   return a;
 }
 
+// The pattern's 512 points as floats, x and y apart (p1 of pair i at 2i, p2
+// at 2i + 1), for the rotation below.
+struct PatternPoints {
+  alignas(16) float x[2 * detail::kOrbPatternPairs];
+  alignas(16) float y[2 * detail::kOrbPatternPairs];
+  PatternPoints() {
+    for (int i = 0; i < 2 * detail::kOrbPatternPairs; ++i) {
+      x[i] = detail::kOrbBitPattern31[2 * i];
+      y[i] = detail::kOrbBitPattern31[2 * i + 1];
+    }
+  }
+};
+const PatternPoints kPatternPoints;
+
 // Steered BRIEF: each of the 256 point pairs is rotated by the keypoint angle
 // and the blurred intensities compared (bit = I(p1) < I(p2)). The arithmetic
-// follows OpenCV's ORB so that the bits are identical.
+// follows OpenCV's ORB so that the bits are identical: in float,
+// x' = round(x a - y b), y' = round(x b + y a), rounding half to even (cvRound).
+// The 512 offsets are computed first, four at a time with SSE2 where there is
+// SSE2 (the same IEEE operations in the same order, so the same bits), then
+// the bytes are compared.
 void describe_keypoint(const cv::Mat& blurred, int x, int y, float angle_deg, uchar* desc) {
   const float angle = angle_deg * static_cast<float>(CV_PI / 180.f);
   const float a = static_cast<float>(std::cos(angle)), b = static_cast<float>(std::sin(angle));
   const uchar* center = blurred.ptr<uchar>(y) + x;
   const int step = static_cast<int>(blurred.step1());
-  const signed char* p = detail::kOrbBitPattern31;
-  auto sample = [&](int px, int py) {
-    const float fx = px * a - py * b, fy = px * b + py * a;
-    return center[cvRound(fy) * step + cvRound(fx)];
-  };
+  constexpr int kPoints = 2 * detail::kOrbPatternPairs;
+  alignas(16) int offset[kPoints];
+  const PatternPoints& pp = kPatternPoints;
+#if defined(__SSE2__)
+  const __m128 va = _mm_set1_ps(a), vb = _mm_set1_ps(b);
+  const __m128i vstep = _mm_set1_epi32(step);
+  for (int i = 0; i < kPoints; i += 4) {
+    const __m128 px = _mm_load_ps(pp.x + i), py = _mm_load_ps(pp.y + i);
+    const __m128i ix = _mm_cvtps_epi32(_mm_sub_ps(_mm_mul_ps(px, va), _mm_mul_ps(py, vb)));
+    const __m128i iy = _mm_cvtps_epi32(_mm_add_ps(_mm_mul_ps(px, vb), _mm_mul_ps(py, va)));
+    // iy * step in 32 bits with SSE2 only: products of the even and odd lanes.
+    const __m128i even = _mm_mul_epu32(iy, vstep);
+    const __m128i odd = _mm_mul_epu32(_mm_srli_epi64(iy, 32), _mm_srli_epi64(vstep, 32));
+    const __m128i prod = _mm_unpacklo_epi32(_mm_shuffle_epi32(even, _MM_SHUFFLE(0, 0, 2, 0)),
+                                            _mm_shuffle_epi32(odd, _MM_SHUFFLE(0, 0, 2, 0)));
+    _mm_store_si128(reinterpret_cast<__m128i*>(offset + i), _mm_add_epi32(prod, ix));
+  }
+#else
+  for (int i = 0; i < kPoints; ++i) {
+    const float fx = pp.x[i] * a - pp.y[i] * b, fy = pp.x[i] * b + pp.y[i] * a;
+    offset[i] = cvRound(fy) * step + cvRound(fx);
+  }
+#endif
+  const int* o = offset;
   for (int i = 0; i < kDescriptorBytes; ++i) {
     int val = 0;
-    for (int bit = 0; bit < 8; ++bit, p += 4)
-      val |= (sample(p[0], p[1]) < sample(p[2], p[3])) << bit;
+    for (int bit = 0; bit < 8; ++bit, o += 2) val |= (center[o[0]] < center[o[1]]) << bit;
     desc[i] = static_cast<uchar>(val);
   }
 }
