@@ -610,6 +610,12 @@ void System::load_map(const std::string& path) {
     s.ensure_core(size);
   }
   s.mapper->wait_idle();  // queued keyframes mapped: a refused file leaves a consistent map
+  // The loop closer's queue, candidate groups and loop edges name the old
+  // map's keyframes by id, and ids repeat across maps: they go, and a global
+  // BA on the old map is aborted. Done before the file is read, so that no
+  // old keyframe is checked against the new map; a refused file therefore
+  // leaves the old map without its loop history (its poses are unchanged).
+  if (s.loop_closer) s.loop_closer->reset();
   {
     std::lock_guard<std::mutex> lk(s.map.mutex());
     map::LoadOptions o;

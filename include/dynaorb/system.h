@@ -197,6 +197,8 @@ class System {
   // file's and puts tracking into LOST, so that the next frame is relocalised
   // in it; it needs a vocabulary, and the file's sensor and calibration must
   // be this system's (InputError naming the file otherwise, the map kept).
+  // Loop closing starts afresh on the loaded map: the file holds no loop
+  // edges, and the old map's are dropped (also when the file is refused).
   void save_map(const std::string& path);
   void load_map(const std::string& path);
   // The dynamic filter's mask of the last frame, in the input image's pixels

@@ -93,8 +93,12 @@ void LoopCloser::reset() {
   // The loop thread is waiting on an empty queue: its state can be touched.
   groups_.clear();
   last_loop_kf_ = -1;
-  std::lock_guard<std::mutex> lk(map_.mutex());
-  loop_edges_.clear();
+  {
+    std::lock_guard<std::mutex> lk(map_.mutex());
+    loop_edges_.clear();
+  }
+  std::lock_guard<std::mutex> lk(queue_mutex_);
+  counters_.loop_edges = 0;
 }
 
 LoopCloserCounters LoopCloser::counters() const {

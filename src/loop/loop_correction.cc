@@ -24,6 +24,7 @@ bool LoopCloser::correct(Loop& loop) {
   stop_global_ba();  // a new loop makes a running global BA obsolete
   mapper_.pause();
   bool done = false;
+  long edge_ends = 0;  // loop edges counted from both ends
   {
     std::lock_guard<std::mutex> lk(map_.mutex());
     KeyFrame* current = loop.current.get();
@@ -146,6 +147,7 @@ bool LoopCloser::correct(Loop& loop) {
       // The loop edge, and both ends kept from culling.
       loop_edges_[current->id].insert(match->id);
       loop_edges_[match->id].insert(current->id);
+      for (const auto& [id, partners] : loop_edges_) edge_ends += static_cast<long>(partners.size());
       current->not_erase = match->not_erase = true;
       last_loop_kf_ = current->id;
       done = true;
@@ -161,6 +163,7 @@ bool LoopCloser::correct(Loop& loop) {
     counters_.last_loop_frame = loop.current->frame_id;
     counters_.last_loop_matches = loop.matches;
     counters_.last_correction_ms = ms_since(t0);
+    counters_.loop_edges = edge_ends / 2;
     if (o_.global_ba) gba_running_ = true;
   }
   if (o_.global_ba) {

@@ -475,6 +475,7 @@ PYBIND11_MODULE(_core, m) {
         d["loops_closed"] = m.loop.loops_closed;
         d["global_ba_runs"] = m.loop.global_ba_runs;
         d["global_ba_aborted"] = m.loop.global_ba_aborted;
+        d["loop_edges"] = m.loop.loop_edges;
         d["last_loop_keyframe"] = m.loop.last_loop_keyframe;
         d["last_loop_match"] = m.loop.last_loop_match;
         d["last_loop_frame"] = m.loop.last_loop_frame;

@@ -121,12 +121,37 @@ def test_loop_closing_cuts_the_end_point_error_5x(runs):
     assert end_closed * 5 <= end_open
 
 
-def test_no_loop_is_closed_on_the_forward_path(tmp_path, vocabulary):
+@pytest.fixture(scope="module")
+def forward(tmp_path_factory, vocabulary):
     from dynaorb.synth import SynthConfig, generate
 
-    generate(tmp_path, SynthConfig(sensor="rgbd", movers=0, frames=90, seed=0, width=320, height=240, fx=262.5))
-    provider, system, results = _run(tmp_path, vocabulary, True)
+    path = tmp_path_factory.mktemp("synth_forward")
+    generate(path, SynthConfig(sensor="rgbd", movers=0, frames=90, seed=0, width=320, height=240, fx=262.5))
+    return path, *_run(path, vocabulary, True)
+
+
+def test_no_loop_is_closed_on_the_forward_path(forward):
+    _, provider, system, results = forward
     assert all(r.state == "OK" for r in results)
     c = system.counters()
     assert c["loops_closed"] == 0 and c["global_ba_runs"] == 0
     assert system.map_summary()["loop_keyframes_checked"] > 0
+
+
+# Last in the file: it loads another map into the looping run's system.
+def test_a_loaded_map_starts_loop_closing_afresh(runs, forward, tmp_path):
+    """The loop closer names keyframes by id, and ids repeat across maps: the old map's loop
+    edges must not constrain the loaded map's essential graph (the map file holds none)."""
+    system = runs[True][0]
+    before = system.map_summary()
+    assert before["loop_edges"] >= 1 and before["loops_closed"] >= 1
+    forward_path, provider, forward_system, _ = forward
+    forward_system.save_map(str(tmp_path / "forward.map"))
+    system.load_map(str(tmp_path / "forward.map"))
+    after = system.map_summary()
+    assert after["loop_edges"] == 0
+    assert after["keyframes"] == forward_system.map_summary()["keyframes"]
+    # The loaded map is relocalised in and mapping goes on, with no loop from the old map.
+    results = [system.track_frame(provider.load(i)) for i in range(0, 30)]
+    assert sum(r.state == "OK" for r in results) >= 25
+    assert system.map_summary()["loops_closed"] == before["loops_closed"]

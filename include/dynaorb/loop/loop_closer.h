@@ -83,6 +83,7 @@ struct LoopCloserCounters {
   long loops_closed = 0;
   long global_ba_runs = 0;   // finished and merged
   long global_ba_aborted = 0;
+  long loop_edges = 0;           // loop edges of the current map (pairs), not a running total
   long last_loop_keyframe = -1;  // ids of the keyframes of the last loop
   long last_loop_match = -1;
   long last_loop_frame = -1;     // frame id of the keyframe that closed the last loop
