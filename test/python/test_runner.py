@@ -1,6 +1,7 @@
 """dynaorb run: real files and stats, counted degradations on bad frames, clear CLI errors."""
 from __future__ import annotations
 
+import collections
 import json
 import shutil
 import subprocess
@@ -49,6 +50,15 @@ def test_corrupt_frame_is_skipped_and_counted(tmp_path, synth_rgbd):
     assert stats["frames_skipped"] == {"unreadable": 1}
     assert sum(stats["states"].values()) == 7
     assert stats["masks"] == {"used": 6, "missing": 1}
+    # One record per frame read, the unreadable one left out; they agree with the totals.
+    frames = stats["per_frame"]
+    assert [f["index"] for f in frames] == [0, 1, 2, 4, 5, 6, 7]
+    assert collections.Counter(f["state"] for f in frames) == collections.Counter(stats["states"])
+    assert [f["track_call_ms"] for f in frames] == stats["track_call_ms"]
+    assert all(f["map"] == 0 and not f["map_dropped"] and f["rejected"] is None for f in frames)
+    assert sum(f["state"] == "OK" for f in frames) == stats["tracked_frames"]
+    assert frames[0]["method"] == "init" and frames[0]["new_keyframe"] and frames[0]["keypoints"] > 0
+    assert all(f["stamp"] < g["stamp"] for f, g in zip(frames, frames[1:]))
 
 
 def test_unknown_dynamic_mode(tmp_path, synth_rgbd):

@@ -366,6 +366,7 @@ def _run(_core, opts: RunOptions, segmenter, semantic, tracker) -> dict:
     per_frame_ms = []
     track_call_ms = []  # wall time around each track call (what a caller of the System waits)
     ok_frames = []  # frame indices tracked (state OK)
+    frame_records = []  # one per frame read: what tracking made of it
     mask_ages = []
     start = time.perf_counter()
     for i, frame in readable_frames(provider, skipped, opts.progress, f"{opts.kind} {pathlib.Path(opts.path).name}"):
@@ -396,6 +397,12 @@ def _run(_core, opts: RunOptions, segmenter, semantic, tracker) -> dict:
         if result.state == "OK":
             ok_frames.append(i)
         methods[result.method or "rejected"] += 1
+        frame_records.append({
+            "index": i, "stamp": frame.stamp, "state": result.state, "method": result.method or None,
+            "rejected": None if result.rejected == "none" else result.rejected, "map": result.map,
+            "map_dropped": result.map_dropped, "keypoints": result.keypoints,
+            "tracked_points": result.tracked_points, "new_keyframe": result.new_keyframe,
+            "track_call_ms": track_call_ms[-1]})
         per_frame_ms.append(dict(result.stage_ms))
         if dynamic_on and result.rejected == "none":
             dynamic_frames.append({
@@ -470,6 +477,9 @@ def _run(_core, opts: RunOptions, segmenter, semantic, tracker) -> dict:
         # benchmark can take the same way for another SLAM system.
         "track_call_ms_median": _median(track_call_ms),
         "track_call_ms": track_call_ms,
+        # Per frame read: index, stamp, state, method, rejection, map index (one more
+        # after each map given up), keypoints, tracked points, keyframe, track call ms.
+        "per_frame": frame_records,
         "wall_s": wall,
         "fps": len(per_frame_ms) / wall if wall > 0 else None,
         "masks": dict(masks.counts) if masks else None,
