@@ -127,11 +127,11 @@ def forward(tmp_path_factory, vocabulary):
 
     path = tmp_path_factory.mktemp("synth_forward")
     generate(path, SynthConfig(sensor="rgbd", movers=0, frames=90, seed=0, width=320, height=240, fx=262.5))
-    return path, *_run(path, vocabulary, True)
+    return _run(path, vocabulary, True)
 
 
 def test_no_loop_is_closed_on_the_forward_path(forward):
-    _, provider, system, results = forward
+    provider, system, results = forward
     assert all(r.state == "OK" for r in results)
     c = system.counters()
     assert c["loops_closed"] == 0 and c["global_ba_runs"] == 0
@@ -145,7 +145,7 @@ def test_a_loaded_map_starts_loop_closing_afresh(runs, forward, tmp_path):
     system = runs[True][0]
     before = system.map_summary()
     assert before["loop_edges"] >= 1 and before["loops_closed"] >= 1
-    forward_path, provider, forward_system, _ = forward
+    provider, forward_system, _ = forward
     forward_system.save_map(str(tmp_path / "forward.map"))
     system.load_map(str(tmp_path / "forward.map"))
     after = system.map_summary()
