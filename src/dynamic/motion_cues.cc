@@ -25,6 +25,8 @@ void MotionCueOptions::read(const cv::FileNode& node) {
   read_option(node, "use_harris", use_harris);
   read_option(node, "harris_k", harris_k);
   read_option(node, "max_background_corners", max_background_corners);
+  read_option(node, "candidate_quality_level", candidate_quality_level);
+  read_option(node, "candidate_quality_level_rgbd", candidate_quality_level_rgbd);
   read_option(node, "subpix_window", subpix_window);
   read_option(node, "lk_window", lk_window);
   read_option(node, "lk_levels", lk_levels);
@@ -232,6 +234,26 @@ std::vector<cv::Point2f> undistorted(const std::vector<cv::Point2f>& px, const m
   return out;
 }
 
+// The points the pose explains: in front of the camera and reprojected
+// within `threshold` px (a pose is checked by what it explains, not by what
+// the solver reports).
+std::vector<int> pnp_inliers(const std::vector<cv::Point3f>& object, const std::vector<cv::Point2f>& image,
+                             const cv::Matx33d& K, const cv::Vec3d& rvec, const cv::Vec3d& tvec, double threshold) {
+  std::vector<int> inliers;
+  if (!std::isfinite(cv::norm(rvec)) || !std::isfinite(cv::norm(tvec))) return inliers;
+  cv::Matx33d R;
+  cv::Rodrigues(rvec, R);
+  const double t2 = threshold * threshold;
+  for (size_t k = 0; k < object.size(); ++k) {
+    const cv::Vec3d X = R * cv::Vec3d(object[k].x, object[k].y, object[k].z) + tvec;
+    if (!(X[2] > 1e-6)) continue;
+    const double du = K(0, 0) * X[0] / X[2] + K(0, 2) - image[k].x;
+    const double dv = K(1, 1) * X[1] / X[2] + K(1, 2) - image[k].y;
+    if (du * du + dv * dv <= t2) inliers.push_back(static_cast<int>(k));
+  }
+  return inliers;
+}
+
 }  // namespace
 
 std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOptions& o, const cv::Mat& candidates) {
@@ -242,9 +264,27 @@ std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOpti
   // budget is not spent on pairs that are dropped anyway.
   cv::Mat detect_mask(grey.size(), CV_8UC1, cv::Scalar(0));
   detect_mask(cv::Rect(border, border, grey.cols - 2 * border, grey.rows - 2 * border)).setTo(255);
-  cv::goodFeaturesToTrack(grey, corners, std::max(o.max_corners, 1), std::clamp(o.quality_level, 1e-6, 1.0),
-                          std::max(o.min_distance, 0.0), detect_mask, std::max(o.block_size, 1), o.use_harris,
-                          o.harris_k);
+  const double quality = std::clamp(o.quality_level, 1e-6, 1.0);
+  auto detect = [&](const cv::Mat& image, const cv::Mat& mask, double q, std::vector<cv::Point2f>& out) {
+    cv::goodFeaturesToTrack(image, out, std::max(o.max_corners, 1), q, std::max(o.min_distance, 0.0), mask,
+                            std::max(o.block_size, 1), o.use_harris, o.harris_k);
+  };
+  detect(grey, detect_mask, quality, corners);
+  const bool have_candidates = candidates.type() == CV_8UC1 && candidates.size() == grey.size();
+  if (have_candidates && o.candidate_quality_level > 0 && o.candidate_quality_level < quality) {
+    // The candidates' corners come from their own detection.
+    const cv::Mat inside = (candidates != 0) & detect_mask;
+    const cv::Rect box = cv::boundingRect(inside);
+    if (box.area() > 0) {
+      corners.erase(std::remove_if(corners.begin(), corners.end(),
+                                   [&](const cv::Point2f& p) { return mask_at(candidates, p); }),
+                    corners.end());
+      std::vector<cv::Point2f> own;
+      detect(grey(box), inside(box), o.candidate_quality_level, own);
+      const cv::Point2f origin(static_cast<float>(box.x), static_cast<float>(box.y));
+      for (const cv::Point2f& p : own) corners.push_back(p + origin);
+    }
+  }
   corners = within_background_budget(corners, candidates, grey.size(), o.max_background_corners);
   if (!corners.empty() && o.subpix_window > 0) {
     refine_corners(grey, corners, o.subpix_window);
@@ -294,6 +334,22 @@ double MotionCueOptions::forward_backward_max_for(Sensor sensor) const {
   return forward_backward_max;
 }
 
+double MotionCueOptions::candidate_quality_level_for(Sensor sensor) const {
+  if (sensor == Sensor::kRGBD && candidate_quality_level_rgbd >= 0) return candidate_quality_level_rgbd;
+  return candidate_quality_level;
+}
+
+namespace {
+
+// The options detect_corners runs with for this sensor.
+MotionCueOptions corner_options(const MotionCueOptions& o, Sensor sensor) {
+  MotionCueOptions c = o;
+  c.candidate_quality_level = o.candidate_quality_level_for(sensor);
+  return c;
+}
+
+}  // namespace
+
 void detect_corners_ahead(const FrameData& frame, const map::Calibration& calib, Sensor sensor,
                           const MotionCueOptions& o, MotionCueCache& cache) {
   cache.corners_image = std::move(cache.next_corners_image);
@@ -303,7 +359,7 @@ void detect_corners_ahead(const FrameData& frame, const map::Calibration& calib,
   const cv::Mat right = wants_stereo_depth(frame, calib, sensor) ? frame.right : cv::Mat();
   const double bf = calib.bf;
   cache.next_corners_image = grey;
-  cache.next_corners = std::async(std::launch::async, [grey, candidates, right, bf, o] {
+  cache.next_corners = std::async(std::launch::async, [grey, candidates, right, bf, o = corner_options(o, sensor)] {
                          AheadCorners a;
                          a.corners = detect_corners(grey, o, candidates);
                          if (!right.empty() && !a.corners.empty())
@@ -328,7 +384,7 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
                        cache->corners_image.size() == size;
     AheadCorners detected;
     if (ahead) detected = cache->corners.get();
-    else detected.corners = detect_corners(prev.grey, o, prev.candidates);
+    else detected.corners = detect_corners(prev.grey, corner_options(o, sensor), prev.candidates);
     const std::vector<cv::Point2f>& corners = detected.corners;
     if (corners.empty()) return out;
     if (cache) cache->ms["corners"] = ms_since(t0);
@@ -433,10 +489,26 @@ EgoMotion estimate_ego_motion(const std::vector<TrackedPoint>& points, const map
       if (static_cast<int>(object.size()) >= min_points) {
         cv::Vec3d rvec, tvec;
         std::vector<int> inl;
+        const float threshold = static_cast<float>(o.ransac_reprojection_px);
+        // EPnP for the samples and for the final fit on all inliers, then
+        // Levenberg-Marquardt from that fit. (With the default flag OpenCV
+        // refits the inliers by its iterative solver started from a DLT or
+        // homography guess, not from the RANSAC model; on rendered rooms that
+        // converged to poses metres or kilometres off, with every point behind
+        // the camera, while still reporting all the inliers.)
         const bool ok = cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false,
-                                           std::max(o.ransac_iterations, 1),
-                                           static_cast<float>(o.ransac_reprojection_px),
-                                           std::clamp(o.ransac_confidence, 0.0, 1.0), inl);
+                                           std::max(o.ransac_iterations, 1), threshold,
+                                           std::clamp(o.ransac_confidence, 0.0, 1.0), inl, cv::SOLVEPNP_EPNP);
+        if (ok && static_cast<int>(inl.size()) >= min_points) {
+          std::vector<cv::Point3f> obj_in;
+          std::vector<cv::Point2f> img_in;
+          for (int k : inl) {
+            obj_in.push_back(object[k]);
+            img_in.push_back(image[k]);
+          }
+          cv::solvePnPRefineLM(obj_in, img_in, K, cv::noArray(), rvec, tvec);
+          inl = pnp_inliers(object, image, K, rvec, tvec, threshold);
+        }
         if (ok && static_cast<int>(inl.size()) >= min_points && std::isfinite(cv::norm(rvec)) &&
             std::isfinite(cv::norm(tvec))) {
           cv::Matx33d R;

@@ -34,6 +34,17 @@ struct MotionCueOptions {
   // tracks. Chosen evenly over the image: a grid of about this many cells,
   // the strongest corner of each cell first. 0: all (the papers' codes).
   int max_background_corners = 0;
+  // Ours: inside the candidates, corners down to this quality relative to
+  // the strongest corner inside them (a second goodFeaturesToTrack over the
+  // candidates only), instead of quality_level relative to the whole image's
+  // strongest. A low-contrast mover in a scene with a strong corner elsewhere
+  // (a checkerboard) otherwise gets no corners, so no point of it is judged
+  // and it is never found moving. Used when 0 < value < quality_level;
+  // else (the default, the papers' codes) one detection over the image.
+  // `candidate_quality_level_rgbd` for RGB-D frames when >= 0 (else the
+  // first): candidate_quality_level_for.
+  double candidate_quality_level = -1;
+  double candidate_quality_level_rgbd = -1;
   // Sub-pixel corner refinement: cornerSubPix half-window of DS-SLAM's code
   // (Size(10, 10)); 0 turns it off.
   int subpix_window = 10;  // px
@@ -81,6 +92,7 @@ struct MotionCueOptions {
   // Missing keys keep their defaults; keys are the member names.
   void read(const cv::FileNode& node);
   double forward_backward_max_for(Sensor sensor) const;  // the backward-check bound for this sensor
+  double candidate_quality_level_for(Sensor sensor) const;
 };
 
 // The corners of an image detected ahead, on another thread, and for a
@@ -114,7 +126,9 @@ struct MotionCueCache {
 };
 
 // The corners track_points tracks from an image: goodFeaturesToTrack
-// inside the border, at most max_background_corners of them outside
+// inside the border (inside `candidates` a detection of their own when
+// candidate_quality_level is set; track_points and detect_corners_ahead pass
+// the sensor's, candidate_quality_level_for), at most max_background_corners of them outside
 // `candidates` (CV_8UC1 of the image's size; else all count as outside),
 // cornerSubPix, near-duplicates removed. May throw cv::Exception on options
 // OpenCV refuses.
@@ -157,8 +171,10 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
                                        const MotionCueOptions& o, MotionCueCache* cache = nullptr);
 
 // Ego-motion from the points with in_candidate == false only (DM-SLAM Sec.
-// 3.2.3): stereo / RGB-D: solvePnPRansac on the undistorted points with their
-// previous depth -> T_cur_prev; all sensors: F by RANSAC (OpenCV's
+// 3.2.3): stereo / RGB-D: solvePnPRansac (EPnP) on the undistorted points with
+// their previous depth, refined by Levenberg-Marquardt on its inliers, then
+// inliers recounted (in front of the camera, within ransac_reprojection_px)
+// -> T_cur_prev; all sensors: F by RANSAC (OpenCV's
 // USAC_ACCURATE) on the undistorted pixels (q^T F p = 0, p previous, q current). valid: the sensor's estimate
 // (T_cur_prev for stereo / RGB-D, F for monocular) is usable; inlier/inliers
 // count the inliers of that estimate. Never throws: too few points or a
