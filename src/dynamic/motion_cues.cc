@@ -234,22 +234,30 @@ std::vector<cv::Point2f> undistorted(const std::vector<cv::Point2f>& px, const m
   return out;
 }
 
-// The points the pose explains: in front of the camera and reprojected
-// within `threshold` px (a pose is checked by what it explains, not by what
-// the solver reports).
-std::vector<int> pnp_inliers(const std::vector<cv::Point3f>& object, const std::vector<cv::Point2f>& image,
-                             const cv::Matx33d& K, const cv::Vec3d& rvec, const cv::Vec3d& tvec, double threshold) {
-  std::vector<int> inliers;
-  if (!std::isfinite(cv::norm(rvec)) || !std::isfinite(cv::norm(tvec))) return inliers;
+// OpenCV's rotation vector and translation as an isometry.
+Eigen::Isometry3d isometry(const cv::Vec3d& rvec, const cv::Vec3d& tvec) {
   cv::Matx33d R;
   cv::Rodrigues(rvec, R);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) T.linear()(r, c) = R(r, c);
+  T.translation() = Eigen::Vector3d(tvec[0], tvec[1], tvec[2]);
+  return T;
+}
+
+// The points the pose T_cur_prev explains: in front of the camera and
+// reprojected within `threshold` px (a pose is checked by what it explains,
+// not by what the solver reports). None for a non-finite pose.
+std::vector<int> pnp_inliers(const std::vector<cv::Point3f>& object, const std::vector<cv::Point2f>& image,
+                             const map::Calibration& calib, const Eigen::Isometry3d& T, double threshold) {
+  std::vector<int> inliers;
+  if (!T.matrix().allFinite()) return inliers;
   const double t2 = threshold * threshold;
   for (size_t k = 0; k < object.size(); ++k) {
-    const cv::Vec3d X = R * cv::Vec3d(object[k].x, object[k].y, object[k].z) + tvec;
-    if (!(X[2] > 1e-6)) continue;
-    const double du = K(0, 0) * X[0] / X[2] + K(0, 2) - image[k].x;
-    const double dv = K(1, 1) * X[1] / X[2] + K(1, 2) - image[k].y;
-    if (du * du + dv * dv <= t2) inliers.push_back(static_cast<int>(k));
+    const Eigen::Vector3d X = T * Eigen::Vector3d(object[k].x, object[k].y, object[k].z);
+    if (!(X.z() > 1e-6)) continue;
+    if ((calib.project(X) - Eigen::Vector2d(image[k].x, image[k].y)).squaredNorm() <= t2)
+      inliers.push_back(static_cast<int>(k));
   }
   return inliers;
 }
@@ -499,6 +507,7 @@ EgoMotion estimate_ego_motion(const std::vector<TrackedPoint>& points, const map
         const bool ok = cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false,
                                            std::max(o.ransac_iterations, 1), threshold,
                                            std::clamp(o.ransac_confidence, 0.0, 1.0), inl, cv::SOLVEPNP_EPNP);
+        Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
         if (ok && static_cast<int>(inl.size()) >= min_points) {
           std::vector<cv::Point3f> obj_in;
           std::vector<cv::Point2f> img_in;
@@ -507,18 +516,11 @@ EgoMotion estimate_ego_motion(const std::vector<TrackedPoint>& points, const map
             img_in.push_back(image[k]);
           }
           cv::solvePnPRefineLM(obj_in, img_in, K, cv::noArray(), rvec, tvec);
-          inl = pnp_inliers(object, image, K, rvec, tvec, threshold);
+          T = isometry(rvec, tvec);
+          inl = pnp_inliers(object, image, calib, T, threshold);
         }
-        if (ok && static_cast<int>(inl.size()) >= min_points && std::isfinite(cv::norm(rvec)) &&
-            std::isfinite(cv::norm(tvec))) {
-          cv::Matx33d R;
-          cv::Rodrigues(rvec, R);
-          Eigen::Matrix3d Re;
-          for (int r = 0; r < 3; ++r)
-            for (int c = 0; c < 3; ++c) Re(r, c) = R(r, c);
-          e.T_cur_prev = Eigen::Isometry3d::Identity();
-          e.T_cur_prev.linear() = Re;
-          e.T_cur_prev.translation() = Eigen::Vector3d(tvec[0], tvec[1], tvec[2]);
+        if (ok && static_cast<int>(inl.size()) >= min_points) {
+          e.T_cur_prev = T;
           for (int k : inl) pnp_inlier[which[k]] = 1;
           pose_inliers = static_cast<int>(inl.size());
           pose_ok = true;
