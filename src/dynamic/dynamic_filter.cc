@@ -231,6 +231,13 @@ void DynamicFilterOptions::validate(Sensor sensor) const {
     throw InputError(src, 0, "the preset has no stage list for the " + to_string(sensor) + " sensor (it has: " +
                                  joined(have) + ")");
   }
+  if (!stages_for(sensor).empty()) {
+    try {
+      motion_cues.validate();
+    } catch (const InputError& e) {
+      throw InputError(src, 0, e.what());
+    }
+  }
   for (const std::string& name : stages_for(sensor)) {
     if (!is_registered(name))
       throw InputError(src, 0, "unknown stage '" + name + "' (known: " + joined(registered_stages()) + ")");

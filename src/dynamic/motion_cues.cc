@@ -7,11 +7,15 @@
 #include <cmath>
 #include <functional>
 #include <future>
+#include <sstream>
+#include <string>
+#include <utility>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 
 #include "dynaorb/core/stopwatch.h"
+#include "dynaorb/io/errors.h"
 #include "file_node_options.h"
 
 namespace dynaorb::dynamic {
@@ -340,6 +344,48 @@ double MotionCueOptions::forward_backward_max_for(Sensor sensor) const {
   if (sensor == Sensor::kRGBD && forward_backward_max_rgbd >= 0) return forward_backward_max_rgbd;
   if (sensor == Sensor::kMono && forward_backward_max_mono >= 0) return forward_backward_max_mono;
   return forward_backward_max;
+}
+
+void MotionCueOptions::validate() const {
+  auto fail = [](const std::string& key, double value, const std::string& rule) {
+    std::ostringstream v;
+    v << value;
+    throw InputError("Dynamic.motion_cues option '" + key + "' is " + v.str() + "; it must be " + rule);
+  };
+  auto at_least = [&](const std::string& key, double value, double min) {
+    if (!(value >= min)) fail(key, value, ">= " + std::to_string(static_cast<int>(min)));
+  };
+  at_least("max_corners", max_corners, 1);
+  if (!(quality_level > 0 && quality_level <= 1)) fail("quality_level", quality_level, "in (0, 1]");
+  at_least("min_distance", min_distance, 0);
+  at_least("block_size", block_size, 1);
+  if (use_harris && !(harris_k > 0 && harris_k < 1)) fail("harris_k", harris_k, "in (0, 1)");
+  at_least("max_background_corners", max_background_corners, 0);
+  const std::string own_quality = "in (0, quality_level) to be used, or <= 0 (off)";
+  if (std::isnan(candidate_quality_level) || candidate_quality_level >= quality_level)
+    fail("candidate_quality_level", candidate_quality_level, own_quality);
+  if (std::isnan(candidate_quality_level_rgbd) || candidate_quality_level_rgbd >= quality_level)
+    fail("candidate_quality_level_rgbd", candidate_quality_level_rgbd,
+         own_quality + " for RGB-D (< 0: as candidate_quality_level)");
+  at_least("subpix_window", subpix_window, 0);
+  at_least("lk_window", lk_window, 3);
+  at_least("lk_levels", lk_levels, 0);
+  at_least("lk_max_iterations", lk_max_iterations, 1);
+  if (!(lk_epsilon > 0) || std::isinf(lk_epsilon)) fail("lk_epsilon", lk_epsilon, "a finite number > 0");
+  for (const auto& [key, value] : {std::pair<const char*, double>{"forward_backward_max", forward_backward_max},
+                                   {"forward_backward_max_rgbd", forward_backward_max_rgbd},
+                                   {"forward_backward_max_mono", forward_backward_max_mono},
+                                   {"stereo_depth_forward_backward_max", stereo_depth_forward_backward_max}})
+    if (std::isnan(value)) fail(key, value, "a number of pixels (<= 0: no backward check)");
+  at_least("border", border, 0);
+  at_least("depth_edge_radius", depth_edge_radius, 0);
+  if (!(depth_edge_max_ratio >= 0) || std::isinf(depth_edge_max_ratio))
+    fail("depth_edge_max_ratio", depth_edge_max_ratio, "a finite ratio >= 0 (0: no depth-edge check)");
+  if (!(ransac_reprojection_px > 0) || std::isinf(ransac_reprojection_px))
+    fail("ransac_reprojection_px", ransac_reprojection_px, "a finite number of pixels > 0");
+  if (!(ransac_confidence > 0 && ransac_confidence < 1)) fail("ransac_confidence", ransac_confidence, "in (0, 1)");
+  at_least("ransac_iterations", ransac_iterations, 1);
+  if (!(min_ego_points >= 8)) fail("min_ego_points", min_ego_points, ">= 8 (the fundamental matrix's 8 points)");
 }
 
 double MotionCueOptions::candidate_quality_level_for(Sensor sensor) const {

@@ -40,9 +40,10 @@ struct MotionCueOptions {
   // strongest. A low-contrast mover in a scene with a strong corner elsewhere
   // (a checkerboard) otherwise gets no corners, so no point of it is judged
   // and it is never found moving. Used when 0 < value < quality_level;
-  // else (the default, the papers' codes) one detection over the image.
+  // <= 0 (the default, the papers' codes): one detection over the image;
+  // a value >= quality_level is refused (validate).
   // `candidate_quality_level_rgbd` for RGB-D frames when >= 0 (else the
-  // first): candidate_quality_level_for.
+  // first; 0: off for RGB-D): candidate_quality_level_for.
   double candidate_quality_level = -1;
   double candidate_quality_level_rgbd = -1;
   // Sub-pixel corner refinement: cornerSubPix half-window of DS-SLAM's code
@@ -91,6 +92,10 @@ struct MotionCueOptions {
 
   // Missing keys keep their defaults; keys are the member names.
   void read(const cv::FileNode& node);
+  // InputError naming the first option out of its range (a NaN, a count
+  // below 1, a ratio outside (0, 1), a candidate quality level at or above
+  // quality_level, ...); DynamicFilterOptions::validate calls it.
+  void validate() const;
   double forward_backward_max_for(Sensor sensor) const;  // the backward-check bound for this sensor
   double candidate_quality_level_for(Sensor sensor) const;
 };

@@ -4,8 +4,14 @@
 // and option reading.
 #include <gtest/gtest.h>
 
+#include <functional>
+#include <limits>
 #include <random>
+#include <string>
+#include <utility>
+#include <vector>
 
+#include "dynaorb/dynamic/dynamic_filter.h"
 #include "dynaorb/dynamic/motion_cues.h"
 #include "dynaorb/io/errors.h"
 #include "synthetic_scene.h"
@@ -600,6 +606,56 @@ TEST(MotionCues, OptionsReadFromYaml) {
   MotionCueOptions c;
   c.read(fs["absent"]);
   EXPECT_EQ(c.max_corners, 1000);
+}
+
+TEST(MotionCues, OptionsOutOfRangeAreRefusedByName) {
+  EXPECT_NO_THROW(MotionCueOptions().validate());
+  MotionCueOptions on;
+  on.candidate_quality_level = 0.005;  // below quality_level: used
+  on.candidate_quality_level_rgbd = 0;  // off for RGB-D
+  on.forward_backward_max_rgbd = -1;    // follows forward_backward_max
+  on.max_background_corners = 0;        // all
+  EXPECT_NO_THROW(on.validate());
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const std::vector<std::pair<std::string, std::function<void(MotionCueOptions&)>>> bad = {
+      {"max_corners", [](MotionCueOptions& o) { o.max_corners = 0; }},
+      {"quality_level", [](MotionCueOptions& o) { o.quality_level = 0; }},
+      {"quality_level", [&](MotionCueOptions& o) { o.quality_level = nan; }},
+      {"candidate_quality_level", [](MotionCueOptions& o) { o.candidate_quality_level = 0.01; }},
+      {"candidate_quality_level", [&](MotionCueOptions& o) { o.candidate_quality_level = nan; }},
+      {"candidate_quality_level_rgbd", [](MotionCueOptions& o) { o.candidate_quality_level_rgbd = 0.5; }},
+      {"lk_window", [](MotionCueOptions& o) { o.lk_window = 2; }},
+      {"lk_epsilon", [](MotionCueOptions& o) { o.lk_epsilon = 0; }},
+      {"forward_backward_max_mono", [&](MotionCueOptions& o) { o.forward_backward_max_mono = nan; }},
+      {"depth_edge_max_ratio", [](MotionCueOptions& o) { o.depth_edge_max_ratio = -0.1; }},
+      {"ransac_reprojection_px", [](MotionCueOptions& o) { o.ransac_reprojection_px = 0; }},
+      {"ransac_confidence", [](MotionCueOptions& o) { o.ransac_confidence = 1; }},
+      {"min_ego_points", [](MotionCueOptions& o) { o.min_ego_points = 4; }},
+      {"max_background_corners", [](MotionCueOptions& o) { o.max_background_corners = -5; }},
+  };
+  for (const auto& [key, change] : bad) {
+    MotionCueOptions o;
+    change(o);
+    try {
+      o.validate();
+      ADD_FAILURE() << key << " accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("'" + key + "'"), std::string::npos) << e.what();
+    }
+  }
+  // Through a preset: the file and the key named, before any frame.
+  const DynamicFilterOptions o = DynamicFilterOptions::parse(
+      "Dynamic.stages: [semantic, dm]\nDynamic.motion_cues:\n  candidate_quality_level_rgbd: 0.02\n", "mine.yaml");
+  try {
+    o.validate(Sensor::kRGBD);
+    ADD_FAILURE() << "accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("mine.yaml"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("'candidate_quality_level_rgbd' is 0.02"), std::string::npos) << e.what();
+  }
+  // A preset without stages never uses the motion cues: not checked.
+  EXPECT_NO_THROW(DynamicFilterOptions::parse("Dynamic.stages: []\nDynamic.motion_cues:\n  max_corners: 0\n", "off")
+                      .validate(Sensor::kRGBD));
 }
 
 }  // namespace
