@@ -38,6 +38,14 @@ class ChildResult:
         return "\n".join(text[-lines:])
 
 
+def child_env() -> dict:
+    """The environment of a `python -m dynaorb...` child: this one, with the package's folder first on
+    PYTHONPATH (a source checkout that is not installed runs the same code)."""
+    package_root = str(pathlib.Path(__file__).resolve().parents[2])
+    return dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in [package_root, os.environ.get("PYTHONPATH", "")]
+                                                       if p))
+
+
 def run_child(cmd: list[str], log: pathlib.Path, timeout_s: float, env: dict | None = None,
               cwd: str | None = None) -> ChildResult:
     """Runs cmd to completion (or kills it at timeout_s), sampling its peak resident memory.

@@ -30,7 +30,7 @@ import platform
 import re
 import sys
 
-from dynaorb.bench.process import run_child
+from dynaorb.bench.process import child_env, run_child
 from dynaorb.bench.suites import Case, Sequence, Suite, build_suite, ensure_rendered
 
 log = logging.getLogger(__name__)
@@ -99,10 +99,8 @@ def _ours_record(case: Case, run: int, out: pathlib.Path, opts: BenchOptions) ->
     if reused is not None:
         return reused
     _start(out, "spec.json", spec)
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in [str(pathlib.Path(__file__).resolve().parents[2]),
-                                                                os.environ.get("PYTHONPATH", "")] if p))
     child = run_child([sys.executable, "-m", "dynaorb.bench.child", str(out / "spec.json")], out / "run.log",
-                      opts.timeout_s, env=env)
+                      opts.timeout_s, env=child_env())
     record = {"system": "dynaorb", "case": case.key, "sequence": seq.name, "sensor": seq.sensor,
               "preset": case.preset, "run": run, "out": str(out),
               "labels": spec.get("labels") or (f"network {pathlib.Path(spec['segment']).stem} (async)"

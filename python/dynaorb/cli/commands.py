@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import pathlib
+import sys
 
 
 def cmd_run(args) -> int:
@@ -156,6 +157,20 @@ def cmd_bench(args) -> int:
         print((out / "report.md").read_text())
         if args.readme:
             _write_readme(out)
+        return 0
+    if args.suite == "seeds":
+        from dynaorb.bench.seeds import SeedsOptions, parse_list, parse_seeds, run_seeds
+
+        try:
+            opts = SeedsOptions(out=args.out, seeds=parse_seeds(args.seeds), jobs=args.jobs, resume=args.resume,
+                                sensors=parse_list(args.sensors), conditions=parse_list(args.conditions),
+                                preset=args.preset, synth_root=args.synth_root)
+            opts.validate()
+        except ValueError as exc:
+            print(f"dynaorb bench: {exc}", file=sys.stderr)
+            return 2
+        run_seeds(opts)
+        print((out / "seeds.md").read_text())
         return 0
     return _bench_segmentation(args)
 

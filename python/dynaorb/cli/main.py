@@ -136,15 +136,30 @@ def build_parser() -> argparse.ArgumentParser:
     vd.set_defaults(func=commands.cmd_vocab_default)
 
     b = sub.add_parser("bench", help="benchmarks (speed as medians; JSON and a Markdown report)")
-    b.add_argument("--suite", choices=["segmentation", "quick", "full"],
+    b.add_argument("--suite", choices=["segmentation", "quick", "full", "seeds"],
                    help="segmentation: network latency per model, back end and thread count, and SLAM "
                         "fps without / with synchronous / with asynchronous segmentation; quick: a few "
                         "sequences (EuRoC V1_01 stereo, KITTI 06, synthetic RGB-D and stereo with movers); "
                         "full: every sequence and sensor of ../shared/data and the synthetic suite with and "
-                        "without movers; both in off mode and every dynamic preset, against ORB-SLAM3")
+                        "without movers; both in off mode and every dynamic preset, against ORB-SLAM3; "
+                        "seeds: the end-to-end accuracy targets (full, ground-truth masks and off against the "
+                        "static room) over many synthetic seeds per sensor (OUT/seeds.md)")
     b.add_argument("--out", default="out/bench", help="output folder (default out/bench)")
     b.add_argument("--runs", type=int, help="runs per case (quick/full, default 3) or timed runs per model and "
                                             "thread count (segmentation, default 10)")
+    b.add_argument("--seeds", default="12", metavar="N|A-B|LIST",
+                   help="seeds: how many (0..N-1), a range or a comma list (default 12)")
+    b.add_argument("--sensors", default="rgbd,stereo,mono", help="seeds: comma list (default rgbd,stereo,mono)")
+    b.add_argument("--conditions", default="static,full,masks,off",
+                   help="seeds: comma list of static (no movers), full (movers, --preset with the label images), "
+                        "masks (movers, ground-truth masks), off (movers, no filter); static is required")
+    b.add_argument("--preset", default="full",
+                   help="seeds: what the full condition runs, a preset name or YAML file (default full)")
+    b.add_argument("--synth-root", metavar="DIR",
+                   help="seeds: where the rendered sequences are cached (default OUT/synth)")
+    b.add_argument("--jobs", type=int, default=1,
+                   help="seeds: runs at a time (default 1; the runs map synchronously, so their ATE does not "
+                        "depend on it)")
     b.add_argument("--no-peer", action="store_true", help="quick/full: without the ORB-SLAM3 comparison")
     b.add_argument("--peer-venv", metavar="DIR",
                    help="virtual environment for pyorbslam3 (default ~/.cache/dynaorb/peer/orbslam3-venv; "
@@ -153,7 +168,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write the README's Results section from OUT/results.json (after the run; "
                         "alone, without --suite, from a finished run)")
     b.add_argument("--resume", action="store_true",
-                   help="quick/full: take each run whose OUT/runs folder holds a record for the same spec from "
+                   help="quick/full/seeds: take each run whose OUT/runs folder holds a record for the same spec from "
                         "there instead of running it again (a bench stopped part way goes on where it stopped; "
                         "the reused runs' times are from when they ran)")
     b.add_argument("--report-only", action="store_true",
