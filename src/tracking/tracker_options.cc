@@ -1,5 +1,5 @@
-// TrackerOptions::validate: its numbers and reloc's checked, the bad one
-// named (two_view and reloc.pnp are not checked). The
+// TrackerOptions::validate: its numbers, reloc's (with reloc.pnp's) and
+// two_view's checked, the bad one named. The
 // options come from Python (`dynaorb run --tracker KEY=VALUE`), ROS
 // parameters and C++ callers; a negative count, a ratio outside (0, 1] or a
 // non-finite number would otherwise change tracking silently (a NaN
@@ -86,6 +86,31 @@ void TrackerOptions::validate() const {
                                 {"mono_init_nn_ratio", mono_init_nn_ratio},
                                 {"reloc.bow_ratio", reloc.bow_ratio}})
     ratio(name, v);
+  // The monocular initialisation's two-view reconstruction.
+  for (const auto& [name, v] : {std::pair<const char*, double>{"two_view.sigma", two_view.sigma},
+                                {"two_view.chi2_h", two_view.chi2_h},
+                                {"two_view.chi2_f", two_view.chi2_f},
+                                {"two_view.score_gamma", two_view.score_gamma},
+                                {"two_view.reproj_chi2", two_view.reproj_chi2}})
+    positive(name, v);
+  at_least("two_view.ransac_iterations", two_view.ransac_iterations, 1);
+  if (two_view.homography_sample < 4 || two_view.homography_sample > 8)
+    refuse("two_view.homography_sample", std::to_string(two_view.homography_sample),
+           "4 to 8 (points of each 8-point set the homography is fitted on)");
+  at_least("two_view.parallax_rank", two_view.parallax_rank, 0);
+  at_least("two_view.min_triangulated", two_view.min_triangulated, 8);
+  if (!std::isfinite(two_view.min_parallax_deg) || two_view.min_parallax_deg < 0 || two_view.min_parallax_deg >= 90)
+    refuse("two_view.min_parallax_deg", number(two_view.min_parallax_deg), "a finite angle in [0, 90) degrees");
+  for (const auto& [name, v] : {std::pair<const char*, double>{"two_view.ratio_h", two_view.ratio_h},
+                                {"two_view.min_good_fraction", two_view.min_good_fraction},
+                                {"two_view.clear_winner_ratio", two_view.clear_winner_ratio}})
+    ratio(name, v);
+  // Relocalisation's PnP RANSAC.
+  if (!std::isfinite(reloc.pnp.probability) || reloc.pnp.probability <= 0 || reloc.pnp.probability >= 1)
+    refuse("reloc.pnp.probability", number(reloc.pnp.probability), "a probability in (0, 1)");
+  at_least("reloc.pnp.min_inliers", reloc.pnp.min_inliers, 4);
+  at_least("reloc.pnp.max_iterations", reloc.pnp.max_iterations, 1);
+  positive("reloc.pnp.chi2", reloc.pnp.chi2);
   if (!std::isfinite(new_map_after_lost_s) || new_map_after_lost_s < 0)
     refuse("new_map_after_lost_s", number(new_map_after_lost_s), "a finite number of seconds >= 0 (0: never)");
   if (!std::isfinite(stereo_right_budget_max_factor) || stereo_right_budget_max_factor < 1)

@@ -153,10 +153,11 @@ struct TrackerOptions {
   TwoViewOptions two_view;            // H / F model selection and reconstruction
   RelocalizationOptions reloc;
 
-  // InputError naming the first bad field of these and reloc's (two_view and
-  // reloc.pnp are not checked): a negative count, a radius that
+  // InputError naming the first bad field of these, reloc's (reloc.pnp's
+  // included) and two_view's: a negative count, a radius or chi2 that
   // is not a finite number > 0, a ratio outside (0, 1], a negative or
-  // non-finite new_map_after_lost_s, a stereo_right_budget_max_factor below 1.
+  // non-finite new_map_after_lost_s, a stereo_right_budget_max_factor below 1,
+  // a PnP probability outside (0, 1), fewer than 4 PnP or 8 two-view points.
   // System calls it on construction.
   void validate() const;
 };

@@ -1,5 +1,6 @@
-// TrackerOptions::validate: the defaults pass; a bad value of each kind is
-// refused with an InputError that names the field.
+// TrackerOptions::validate: the defaults pass; a bad value of each kind
+// (two_view's and reloc.pnp's included) is refused with an InputError that
+// names the field.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -34,6 +35,8 @@ TEST(TrackerOptions, ZeroIsAcceptedWhereItMeansOff) {
   EXPECT_EQ(refusal([](TrackerOptions& o) { o.min_frames = 0; }), "");
   EXPECT_EQ(refusal([](TrackerOptions& o) { o.stereo_right_budget_max_factor = 1; }), "");
   EXPECT_EQ(refusal([](TrackerOptions& o) { o.ref_ratio_mono = 1; }), "");
+  EXPECT_EQ(refusal([](TrackerOptions& o) { o.two_view.min_parallax_deg = 0; }), "");
+  EXPECT_EQ(refusal([](TrackerOptions& o) { o.two_view.homography_sample = 8; }), "");  // ORB-SLAM2's code
 }
 
 TEST(TrackerOptions, BadValuesAreRefusedByName) {
@@ -56,6 +59,16 @@ TEST(TrackerOptions, BadValuesAreRefusedByName) {
       {"'reloc.bow_ratio' is 0", [](TrackerOptions& o) { o.reloc.bow_ratio = 0; }},
       {"'stereo_right_budget_max_factor' is 0.5",
        [](TrackerOptions& o) { o.stereo_right_budget_max_factor = 0.5; }},
+      {"'two_view.sigma' is 0", [](TrackerOptions& o) { o.two_view.sigma = 0; }},
+      {"'two_view.chi2_f' is nan", [&](TrackerOptions& o) { o.two_view.chi2_f = nan; }},
+      {"'two_view.ransac_iterations' is 0", [](TrackerOptions& o) { o.two_view.ransac_iterations = 0; }},
+      {"'two_view.homography_sample' is 3", [](TrackerOptions& o) { o.two_view.homography_sample = 3; }},
+      {"'two_view.min_triangulated' is 5", [](TrackerOptions& o) { o.two_view.min_triangulated = 5; }},
+      {"'two_view.min_parallax_deg' is -1", [](TrackerOptions& o) { o.two_view.min_parallax_deg = -1; }},
+      {"'two_view.ratio_h' is 1.2", [](TrackerOptions& o) { o.two_view.ratio_h = 1.2; }},
+      {"'reloc.pnp.probability' is 1", [](TrackerOptions& o) { o.reloc.pnp.probability = 1; }},
+      {"'reloc.pnp.min_inliers' is 3", [](TrackerOptions& o) { o.reloc.pnp.min_inliers = 3; }},
+      {"'reloc.pnp.chi2' is inf", [&](TrackerOptions& o) { o.reloc.pnp.chi2 = inf; }},
   };
   for (const Case& c : cases) {
     const std::string msg = refusal(c.change);
