@@ -22,7 +22,8 @@ def test_seeds_parse_as_count_range_and_list():
 def test_options_refuse_what_cannot_run():
     for kwargs, says in [({"sensors": ("lidar",)}, "lidar"), ({"conditions": ("full",)}, "include static"),
                          ({"conditions": ("static", "best")}, "best"), ({"jobs": 0}, "jobs"),
-                         ({"seeds": ()}, "at least one seed")]:
+                         ({"seeds": ()}, "at least one seed"), ({"preset": "fastest"}, "unknown dynamic mode"),
+                         ({"preset": "li", "sensors": ("rgbd",)}, "no stage list for the rgbd sensor")]:
         with pytest.raises(ValueError, match=says):
             SeedsOptions(**kwargs).validate()
 

@@ -28,9 +28,7 @@ import datetime
 import json
 import pathlib
 import statistics
-import sys
 
-from dynaorb.bench.process import child_env, run_child
 from dynaorb.bench.suites import SYNTH_FRAMES, Sequence, ensure_rendered, synth_sequence
 
 SENSORS = ("rgbd", "stereo", "mono")
@@ -78,6 +76,13 @@ class SeedsOptions:
                              + (f" (unknown: {', '.join(bad)})" if bad else ""))
         if self.jobs < 1:
             raise ValueError(f"jobs must be >= 1, got {self.jobs}")
+        if "full" in self.conditions:
+            from dynaorb.bench.suites import preset_applicability
+
+            for sensor in self.sensors:  # an unknown preset (ValueError) or one the sensor cannot run
+                why = preset_applicability(self.preset, sensor)
+                if why is not None:
+                    raise ValueError(f"--preset {self.preset}: {why}")
 
 
 def parse_list(text: str) -> tuple[str, ...]:
@@ -112,7 +117,7 @@ def _sequence(sensor: str, movers: int, seed: int, root: pathlib.Path, opts: See
 
 def _run(seq: Sequence, sensor: str, seed: int, condition: str, out: pathlib.Path, opts: SeedsOptions) -> dict:
     """One run of one condition (its record, also written to its folder)."""
-    from dynaorb.bench.suite_runner import _keep, _reused, _start
+    from dynaorb.bench.suite_runner import _keep, _reused, run_spec
 
     _, preset, labels, masks = CONDITIONS[condition]
     if condition == "full":
@@ -127,9 +132,7 @@ def _run(seq: Sequence, sensor: str, seed: int, condition: str, out: pathlib.Pat
     reused = _reused(out, "spec.json", spec, opts.resume)
     if reused is not None:
         return reused
-    _start(out, "spec.json", spec)
-    child = run_child([sys.executable, "-m", "dynaorb.bench.child", str(out / "spec.json")], out / "run.log",
-                      opts.timeout_s, env=child_env())
+    child = run_spec(out, spec, opts.timeout_s)
     record["wall_s"] = child.wall_s
     result = out / "result.json"
     if child.ok and result.is_file():

@@ -98,9 +98,7 @@ def _ours_record(case: Case, run: int, out: pathlib.Path, opts: BenchOptions) ->
     reused = _reused(out, "spec.json", spec, opts.resume)
     if reused is not None:
         return reused
-    _start(out, "spec.json", spec)
-    child = run_child([sys.executable, "-m", "dynaorb.bench.child", str(out / "spec.json")], out / "run.log",
-                      opts.timeout_s, env=child_env())
+    child = run_spec(out, spec, opts.timeout_s)
     record = {"system": "dynaorb", "case": case.key, "sequence": seq.name, "sensor": seq.sensor,
               "preset": case.preset, "run": run, "out": str(out),
               "labels": spec.get("labels") or (f"network {pathlib.Path(spec['segment']).stem} (async)"
@@ -127,6 +125,14 @@ def _ours_record(case: Case, run: int, out: pathlib.Path, opts: BenchOptions) ->
     else:
         record["error"] = (child.failure() or "no result written") + "\n" + child.log_tail()
     return _keep(out, record)
+
+
+def run_spec(out: pathlib.Path, spec: dict, timeout_s: float):
+    """Runs dynaorb on spec (RunOptions fields and "result") in a child process, its spec.json and run.log in
+    out; the ChildResult (the stats are in spec's result file when it succeeded)."""
+    _start(out, "spec.json", spec)
+    return run_child([sys.executable, "-m", "dynaorb.bench.child", str(out / "spec.json")], out / "run.log",
+                     timeout_s, env=child_env())
 
 
 def _has_semantic(preset: str, sensor: str) -> bool:
