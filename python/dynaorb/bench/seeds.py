@@ -16,7 +16,8 @@ synchronous mapping (runs repeat exactly):
           be at least 3x worse).
 
 Each run is a child process (a crash is recorded, the sweep goes on).
-Writes OUT/seeds.json (every run) and OUT/seeds.md: per sensor and seed the
+Writes OUT/seeds.json (every run; rewritten after each, so a sweep stopped
+part way keeps what it ran) and OUT/seeds.md: per sensor and seed the
 ATEs and their ratios to static, and per sensor and condition the median
 ratio, the worst seed and how many seeds meet the target.
 """
@@ -181,11 +182,18 @@ def run_seeds(opts: SeedsOptions, progress=print) -> dict:
                      + (f"ATE {record['ate_rmse'] * 1000:.2f} mm" if record.get("ate_rmse") is not None
                         else (record.get("error") or record.get("ate_reason") or "no ATE").splitlines()[0]))
             results["records"].append(record)
+            _save(out, results)  # a sweep stopped part way keeps its runs ("finished" null; --resume goes on)
     results["finished"] = datetime.datetime.now().isoformat(timespec="seconds")
     results["summary"] = summarize(results)
-    (out / "seeds.json").write_text(json.dumps(results, indent=1))
+    _save(out, results)
     (out / "seeds.md").write_text(render(results))
     return results
+
+
+def _save(out: pathlib.Path, results: dict) -> None:
+    part = out / "seeds.json.part"
+    part.write_text(json.dumps(results, indent=1))
+    part.replace(out / "seeds.json")
 
 
 def _meets(ratio: float, target: tuple[str, float]) -> bool:
