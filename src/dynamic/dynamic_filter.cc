@@ -146,7 +146,13 @@ DynamicFilterOptions from_storage(std::shared_ptr<cv::FileStorage> fs, const std
         throw InputError(source, 0, "'" + key + "' must be -1 (auto), 0 (never) or 1 (always)");
       o.overlap_extraction = static_cast<int>(n);
     } else if (key == kMotionCuesKey) {
-      read_options(n, key, source, [](const cv::FileNode& node) { MotionCueOptions().read(node); });
+      // Checked here, at load time, as the stages' options are (validate() checks them again for
+      // options built in code).
+      read_options(n, key, source, [](const cv::FileNode& node) {
+        MotionCueOptions m;
+        m.read(node);
+        m.validate();
+      });
       if (!n.empty() && !n.isNone()) o.motion_cues.read(n);
     } else if (key == kInpaintingKey) {
       read_options(n, key, source, [](const cv::FileNode& node) { InpaintOptions().read(node); });
@@ -231,18 +237,19 @@ void DynamicFilterOptions::validate(Sensor sensor) const {
     throw InputError(src, 0, "the preset has no stage list for the " + to_string(sensor) + " sensor (it has: " +
                                  joined(have) + ")");
   }
-  if (!stages_for(sensor).empty()) {
-    try {
-      motion_cues.validate();
-    } catch (const InputError& e) {
-      throw InputError(src, 0, e.what());
+  // The options' own checks (the motion cues', and each stage's as it is made,
+  // e.g. li's) name the key; the preset file is added here.
+  try {
+    if (!stages_for(sensor).empty()) motion_cues.validate();
+    for (const std::string& name : stages_for(sensor)) {
+      if (!is_registered(name))
+        throw InputError(src, 0, "unknown stage '" + name + "' (known: " + joined(registered_stages()) + ")");
+      if (!make_stage(*this, name)->supports(sensor))
+        throw InputError(src, 0, "stage '" + name + "' does not support the " + to_string(sensor) + " sensor");
     }
-  }
-  for (const std::string& name : stages_for(sensor)) {
-    if (!is_registered(name))
-      throw InputError(src, 0, "unknown stage '" + name + "' (known: " + joined(registered_stages()) + ")");
-    if (!make_stage(*this, name)->supports(sensor))
-      throw InputError(src, 0, "stage '" + name + "' does not support the " + to_string(sensor) + " sensor");
+  } catch (const InputError& e) {
+    if (!e.file().empty()) throw;
+    throw InputError(src, 0, e.what());
   }
 }
 

@@ -94,7 +94,7 @@ struct MotionCueOptions {
   void read(const cv::FileNode& node);
   // InputError naming the first option out of its range (a NaN, a count
   // below 1, a ratio outside (0, 1), a candidate quality level at or above
-  // quality_level, ...); DynamicFilterOptions::validate calls it.
+  // quality_level, ...); DynamicFilterOptions::parse (at load) and validate call it.
   void validate() const;
   double forward_backward_max_for(Sensor sensor) const;  // the backward-check bound for this sensor
   double candidate_quality_level_for(Sensor sensor) const;

@@ -643,19 +643,29 @@ TEST(MotionCues, OptionsOutOfRangeAreRefusedByName) {
       EXPECT_NE(std::string(e.what()).find("'" + key + "'"), std::string::npos) << e.what();
     }
   }
-  // Through a preset: the file and the key named, before any frame.
-  const DynamicFilterOptions o = DynamicFilterOptions::parse(
-      "Dynamic.stages: [semantic, dm]\nDynamic.motion_cues:\n  candidate_quality_level_rgbd: 0.02\n", "mine.yaml");
+  // Through a preset: refused when it is loaded, the file and the key named (as a stage's options are),
+  // with or without stages that use them.
+  for (const std::string stages : {"[semantic, dm]", "[]"}) {
+    try {
+      DynamicFilterOptions::parse("Dynamic.stages: " + stages +
+                                      "\nDynamic.motion_cues:\n  candidate_quality_level_rgbd: 0.02\n",
+                                  "mine.yaml");
+      ADD_FAILURE() << stages << " accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("mine.yaml"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("'candidate_quality_level_rgbd' is 0.02"), std::string::npos) << e.what();
+    }
+  }
+  // Options built in code are checked by validate(sensor), which the filter and the System call.
+  DynamicFilterOptions o = DynamicFilterOptions::parse("Dynamic.stages: [semantic, dm]\n", "mine.yaml");
+  o.motion_cues.min_ego_points = 3;
   try {
     o.validate(Sensor::kRGBD);
     ADD_FAILURE() << "accepted";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("mine.yaml"), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find("'candidate_quality_level_rgbd' is 0.02"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("'min_ego_points' is 3"), std::string::npos) << e.what();
   }
-  // A preset without stages never uses the motion cues: not checked.
-  EXPECT_NO_THROW(DynamicFilterOptions::parse("Dynamic.stages: []\nDynamic.motion_cues:\n  max_corners: 0\n", "off")
-                      .validate(Sensor::kRGBD));
 }
 
 }  // namespace
