@@ -308,6 +308,7 @@ PYBIND11_MODULE(_core, m) {
       .def_readwrite("new_map_after_lost_s", &tracking::TrackerOptions::new_map_after_lost_s)
       .def_readwrite("mono_init_feature_factor", &tracking::TrackerOptions::mono_init_feature_factor)
       .def_readwrite("mono_init_feature_frames", &tracking::TrackerOptions::mono_init_feature_frames)
+      .def_readwrite("mono_init_release_tracked", &tracking::TrackerOptions::mono_init_release_tracked)
       .def_readwrite("stereo_right_budget_max_factor", &tracking::TrackerOptions::stereo_right_budget_max_factor)
       .def_readwrite("mono_init_min_keypoints", &tracking::TrackerOptions::mono_init_min_keypoints)
       .def_readwrite("mono_init_window", &tracking::TrackerOptions::mono_init_window)

@@ -173,6 +173,7 @@ bool Tracker::create_initial_map_mono(Frame& f, const std::vector<TwoViewMatch>&
   mapper_.insert_keyframe(kf_ini);
   start_tracking(f, {kf_cur, kf_ini});
   init_frame_id_ = f.id;
+  init_features_released_ = false;
   init_reference_ = Frame();
   init_prev_matched_.clear();
   return true;

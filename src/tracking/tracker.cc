@@ -56,6 +56,7 @@ void Tracker::reset() {
   init_reference_ = Frame();
   init_prev_matched_.clear();
   init_frame_id_ = -1;
+  init_features_released_ = false;
   keep_map_ = false;
   vo_ = false;
 }
@@ -136,6 +137,8 @@ TrackOutcome Tracker::track(Frame& f) {
   }
   out.ok = true;
   out.inliers = inliers_;
+  if (init_frame_id_ >= 0 && o_.mono_init_release_tracked > 0 && inliers_ >= o_.mono_init_release_tracked)
+    init_features_released_ = true;
   // The motion model needs two consecutive tracked frames: after a loss (or
   // a relocalisation) the next frame is matched against the reference keyframe.
   velocity_ = f.T_cw * last_.T_cw.inverse();

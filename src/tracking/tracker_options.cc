@@ -57,6 +57,7 @@ void TrackerOptions::validate() const {
                                 {"reset_if_lost_below_keyframes", reset_if_lost_below_keyframes},
                                 {"reset_after_lost", reset_after_lost},
                                 {"mono_init_feature_frames", mono_init_feature_frames},
+                                {"mono_init_release_tracked", mono_init_release_tracked},
                                 {"mono_init_min_keypoints", mono_init_min_keypoints},
                                 {"mono_init_min_matches", mono_init_min_matches},
                                 {"mono_init_ba_iterations", mono_init_ba_iterations},

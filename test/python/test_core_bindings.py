@@ -69,6 +69,7 @@ def test_tracker_options_reach_the_system(data):
     factor changes how many keypoints the first frame gets."""
     o = core().TrackerOptions()
     assert o.mono_init_feature_factor == 4 and o.mono_init_feature_frames == 60  # chosen on MH_05 (tracker.h)
+    assert o.mono_init_release_tracked == 1000
     provider = core().open_dataset("euroc", str(data / "euroc/MH_05_difficult_head"))
     settings = provider.default_settings()
     frame = provider.load(0)

@@ -162,10 +162,12 @@ def test_full_within_1_2x_of_static_and_off_3x_worse(tmp_path, synth_seeds, sens
     #   stereo 1.09 / 1.48 / 0.94 (1.09); 1.20 / 1.57 / 1.28 (1.28) before the
     #          right image's budget followed the mask (stereo_right_budget_max_factor);
     #          over seeds 0-12 the median went 1.26 -> 1.11
-    #   mono   1.19 / 1.06 / 1.00 (1.06), 53-56 of 60 frames tracked (static: 55-56);
+    #   mono   1.17 / 0.72 / 0.89 (0.89), 53-56 of 60 frames tracked (static: 55-56);
+    #          1.19 / 1.06 / 1.00 (1.06) before frames left the 4x feature count
+    #          once one tracks 1000 points (mono_init_release_tracked);
     #          1.24 / 1.07 / 1.00 with the backward LK check (forward_backward_max_mono)
     # Where the target is missed, the bound is a regression bound.
-    # off / static median: RGB-D 152, stereo 65, mono 8.3.
+    # off / static median: RGB-D 152, stereo 65, mono 8.2.
     assert full_median <= {"rgbd": 1.3, "stereo": 1.2, "mono": 1.2}[sensor]
     assert off_median >= 3
 

@@ -120,6 +120,24 @@ struct TrackerOptions {
   //                                   tracked, 0.012-0.014 m over those
   int mono_init_feature_factor = 4;
   int mono_init_feature_frames = 60;
+  // ... unless a frame extracted with that count tracks at least this many
+  // map points first: later frames then go back to nFeatures at once (0: the
+  // frame count alone decides). At the switch a frame keeps about a third of
+  // its tracked points: MH_05 with window 40 goes 804 -> 259 and tracks on;
+  // window 20 switches at 160 (54 left) and loses the map two frames later;
+  // a release at 400 switches at frame 10 and loses it likewise. Measured
+  // (`dynaorb run euroc MH_05_difficult_head --sensor mono --tracker
+  // mono_init_release_tracked=N`, synchronous; synthetic monocular seeds
+  // 0-11 without / with movers, `dynaorb run kitti`):
+  //   0 (frame window only): MH_05 0.0141 m, 242/242 after init; synthetic
+  //     static median 4.85 mm, `full` 1.07x (seeds 0-2: 1.06), masks 1.03x
+  //     (1.30); async track call seed 0 14.5 ms
+  //   600: MH_05 switches at frame 40, 0.0116 m, 242/242; static 5.25 mm; 6.8 ms
+  //   1000: MH_05 at frame 66, 0.0153 m, 242/242; static 4.99 mm, `full`
+  //     median 1.05x static (seeds 0-2: 0.89), ground-truth masks 1.00x
+  //     (0.98); synthetic frames switch at frame ~20; 8.7 ms
+  // (ORB-SLAM3 keeps its 5x extractor for about fps frames after the map.)
+  int mono_init_release_tracked = 1000;
   int mono_init_min_keypoints = 100;  // reference and current frame: more keypoints than this
   double mono_init_window = 100.0;    // SearchForInitialization window, pixels
   double mono_init_nn_ratio = 0.9;    // best / second best descriptor distance
@@ -197,9 +215,11 @@ class Tracker {
   bool initialized() const { return initialized_; }
   // Monocular: whether frame frame_id should be extracted with the larger
   // initialisation feature count (no map yet, or within
-  // mono_init_feature_frames frames of the frame that made it).
+  // mono_init_feature_frames frames of the frame that made it and no frame
+  // since has tracked mono_init_release_tracked points).
   bool wants_init_features(long frame_id) const {
-    return !initialized_ || (init_frame_id_ >= 0 && frame_id - init_frame_id_ <= o_.mono_init_feature_frames);
+    return !initialized_ || (init_frame_id_ >= 0 && !init_features_released_ &&
+                             frame_id - init_frame_id_ <= o_.mono_init_feature_frames);
   }
   // The constant-velocity prediction of the next frame's T_cw (the motion
   // model's starting pose); empty unless the last two frames were tracked.
@@ -277,6 +297,7 @@ class Tracker {
   map::Frame init_reference_;
   std::vector<Eigen::Vector2d> init_prev_matched_;
   long init_frame_id_ = -1;  // the frame that made the monocular map; -1: none
+  bool init_features_released_ = false;  // a frame tracked mono_init_release_tracked points
   std::string init_status_;  // why the last frame made no monocular map (TrackOutcome::init_status)
 };
 
