@@ -12,6 +12,7 @@
 #include "ddl_keyframes.h"
 #include "dynaorb/core/stopwatch.h"
 #include "file_node_options.h"
+#include "option_checks.h"
 #include "view_geometry.h"
 
 namespace dynaorb::dynamic {
@@ -46,6 +47,31 @@ void DdlOptions::read(const cv::FileNode& node) {
   read_option(node, "grow_max_from_seed_m", grow_max_from_seed_m);
   read_option(node, "dilation_px", dilation_px);
   read_option(node, "combine_semantic", combine_semantic);
+  validate();
+}
+
+void DdlOptions::validate() const {
+  const detail::OptionChecks c("Dynamic.ddl");
+  c.at_least("reference_keyframes", reference_keyframes, 1);
+  if (!(min_overlap >= 0 && min_overlap <= 1)) c.fail("min_overlap", min_overlap, "in [0, 1] (0: any overlap)");
+  c.between("parallax_threshold_deg", parallax_threshold_deg, 0, 180, false);
+  c.positive("depth_threshold_m", depth_threshold_m);
+  c.non_negative("max_depth_m", max_depth_m, "no limit");
+  c.at_least("depth_search_radius_px", depth_search_radius_px, 0);
+  c.at_least("border_px", border_px, 0);
+  c.positive("refine_reprojection_px", refine_reprojection_px);
+  c.positive("refine_max_shift_px", refine_max_shift_px);
+  c.at_least("refine_min_inliers", refine_min_inliers, 4);  // a PnP pose
+  c.at_least("refine_points_per_keyframe", refine_points_per_keyframe, 1);
+  c.at_least("confirm_search_radius_px", confirm_search_radius_px, 0);
+  if (!(confirm_min_zncc <= 1) || std::isinf(confirm_min_zncc))
+    c.fail("confirm_min_zncc", confirm_min_zncc, "a finite number <= 1 (<= -1: no texture test)");
+  c.non_negative("confirm_min_std_grey", confirm_min_std_grey, "no contrast floor");
+  c.at_least("confirm_patch_radius_px", confirm_patch_radius_px, 1);
+  c.non_negative("confirm_blur_sigma_px", confirm_blur_sigma_px, "no blur");
+  c.positive("grow_max_step_inv_depth", grow_max_step_inv_depth);
+  c.non_negative("grow_max_from_seed_m", grow_max_from_seed_m, "no limit");
+  c.at_least("dilation_px", dilation_px, 0);
 }
 
 namespace {

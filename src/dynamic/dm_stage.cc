@@ -11,6 +11,7 @@
 #include "dynaorb/dynamic/candidate_regions.h"
 #include "dynaorb/io/errors.h"
 #include "file_node_options.h"
+#include "option_checks.h"
 
 namespace dynaorb::dynamic {
 
@@ -27,13 +28,23 @@ void DmOptions::read(const cv::FileNode& node) {
   read_option(node, "keep_moving_frames", keep_moving_frames);
   read_option(node, "keep_moving_frames_mono", keep_moving_frames_mono);
   read_option(node, "keep_moving_overlap", keep_moving_overlap);
-  if (keep_moving_frames < 0 || keep_moving_frames_mono < 0)
-    throw InputError("options 'keep_moving_frames' and 'keep_moving_frames_mono' must be >= 0");
-  if (!(keep_moving_overlap > 0 && keep_moving_overlap <= 1))
-    throw InputError("option 'keep_moving_overlap' must be in (0, 1]");
+  validate();
+}
+
+void DmOptions::validate() const {
+  const detail::OptionChecks c("Dynamic.dm");
+  c.at_least("min_static_points", min_static_points, 1);
+  c.non_negative("min_dynamic_offset_px", min_dynamic_offset_px, "eq. 8 alone");
+  c.positive("epipolar_threshold_px", epipolar_threshold_px);
+  c.between("region_dynamic_fraction", region_dynamic_fraction, 0, 1, true);
+  c.between("region_dynamic_fraction_mono", region_dynamic_fraction_mono, 0, 1, true);
+  c.at_least("min_region_points", min_region_points, 1);
   if (few_points_policy != "previous" && few_points_policy != "static" && few_points_policy != "dynamic")
-    throw InputError("option 'few_points_policy' must be previous, static or dynamic, not '" +
-                     few_points_policy + "'");
+    throw InputError("Dynamic.dm option 'few_points_policy' is '" + few_points_policy +
+                     "'; it must be previous, static or dynamic");
+  c.at_least("keep_moving_frames", keep_moving_frames, 0);
+  c.at_least("keep_moving_frames_mono", keep_moving_frames_mono, 0);
+  c.between("keep_moving_overlap", keep_moving_overlap, 0, 1, true);
 }
 
 bool DmStage::needs_motion_cues_for(const Context& ctx) const {

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <mutex>
 
 #include "dynaorb/core/stopwatch.h"
@@ -190,15 +191,11 @@ std::vector<std::string> registered_stages() {
 bool is_registered(const std::string& name) { return static_cast<bool>(factory_of(name)); }
 
 DynamicFilterOptions DynamicFilterOptions::load(const std::string& path) {
-  if (!std::ifstream(path)) throw InputError(path, 0, "dynamic preset not found or not readable");
-  auto fs = std::make_shared<cv::FileStorage>();
-  try {
-    fs->open(path, cv::FileStorage::READ | cv::FileStorage::FORMAT_YAML);
-  } catch (const cv::Exception& e) {
-    throw InputError(path, 0, "not a valid OpenCV YAML file (" + e.msg + ")");
-  }
-  if (!fs->isOpened()) throw InputError(path, 0, "not a valid OpenCV YAML file");
-  return from_storage(fs, path);
+  std::ifstream in(path);
+  if (!in) throw InputError(path, 0, "dynamic preset not found or not readable");
+  // Read as text so that a preset without the `%YAML:1.0` line loads too (parse adds it).
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  return parse(text, path);
 }
 
 DynamicFilterOptions DynamicFilterOptions::parse(const std::string& yaml, const std::string& source) {

@@ -14,6 +14,7 @@
 #include "dynaorb/dynamic/candidate_regions.h"
 #include "dynaorb/io/errors.h"
 #include "file_node_options.h"
+#include "option_checks.h"
 
 namespace dynaorb::dynamic {
 
@@ -24,9 +25,6 @@ void StdynOptions::read(const cv::FileNode& node) {
   read_option(node, "f_ransac_confidence", f_ransac_confidence);
   read_option(node, "f_ransac_iterations", f_ransac_iterations);
   read_option(node, "f_method", f_method);
-  if (f_method != "ransac" && f_method != "usac")
-    throw InputError("option '" + detail::key_name(node, "f_method") + "': unknown estimator '" + f_method +
-                     "' (ransac or usac)");
   read_option(node, "f_exclude_candidates", f_exclude_candidates);
   read_option(node, "f_refine_on_inliers", f_refine_on_inliers);
   read_option(node, "min_points", min_points);
@@ -50,6 +48,27 @@ void StdynOptions::read(const cv::FileNode& node) {
     }
     movable_labels = ids;
   }
+  validate();
+}
+
+void StdynOptions::validate() const {
+  const detail::OptionChecks c("Dynamic.stdyn");
+  c.positive("epipolar_threshold_px", epipolar_threshold_px);
+  c.positive("f_ransac_threshold_px", f_ransac_threshold_px);
+  c.between("f_ransac_confidence", f_ransac_confidence, 0, 1, false);
+  c.at_least("f_ransac_iterations", f_ransac_iterations, 1);
+  if (f_method != "ransac" && f_method != "usac")
+    throw InputError("Dynamic.stdyn option 'f_method' is '" + f_method + "'; it must be ransac or usac");
+  c.at_least("min_points", min_points, 8);  // the 8-point algorithm
+  c.at_least("edge_margin_px", edge_margin_px, 0);
+  c.finite("patch_max_abs_diff", patch_max_abs_diff, "a finite number (<= 0: no patch check)");
+  c.at_least("min_dynamic_points", min_dynamic_points, 1);
+  if (!(min_dynamic_ratio >= 0 && min_dynamic_ratio <= 1))
+    c.fail("min_dynamic_ratio", min_dynamic_ratio, "in [0, 1] (0: no ratio)");
+  c.at_least("object_search_radius_px", object_search_radius_px, 0);
+  c.at_least("no_labels_point_radius_px", no_labels_point_radius_px, 1);
+  for (int id : movable_labels)
+    if (id < 0 || id > 255) c.fail("movable_labels", id, "a list of class ids 0..255");
 }
 
 namespace {
@@ -135,7 +154,9 @@ cv::Size frame_size(const Context& ctx) {
 
 }  // namespace
 
-StdynStage::StdynStage(StdynOptions options) : o_(std::move(options)), movable_lut_(movable_lut(o_.movable_labels)) {}
+StdynStage::StdynStage(StdynOptions options) : o_(std::move(options)), movable_lut_(movable_lut(o_.movable_labels)) {
+  o_.validate();
+}
 
 bool StdynStage::has_objects(const Context& ctx, const cv::Size& size) const {
   // The objects process() decides on: the candidate regions, else the

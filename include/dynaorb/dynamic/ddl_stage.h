@@ -184,6 +184,9 @@ struct DdlOptions {
 
   // Missing keys keep their defaults; keys are the member names.
   void read(const cv::FileNode& node);
+  // InputError naming the first option out of range (a NaN, a negative radius,
+  // a count or probability the estimators cannot use); read() and the stage call it.
+  void validate() const;
 };
 
 namespace ddl {
@@ -192,7 +195,7 @@ struct KeyframeMaps;  // ddl_keyframes.h (internal)
 
 class DdlStage : public Stage {
  public:
-  explicit DdlStage(DdlOptions options = {}) : o_(std::move(options)) {}
+  explicit DdlStage(DdlOptions options = {}) : o_(std::move(options)) { o_.validate(); }
 
   std::string name() const override { return "ddl"; }
   bool supports(Sensor sensor) const override { return sensor == Sensor::kRGBD || sensor == Sensor::kStereo; }

@@ -89,6 +89,9 @@ struct DmOptions {
   // Missing keys keep their defaults; keys are the member names.
   // Throws InputError for a wrong type or an unknown few_points_policy.
   void read(const cv::FileNode& node);
+  // InputError naming the first option out of range (a NaN, a count below 1,
+  // a fraction outside (0, 1], an unknown policy); read() and DmStage call it.
+  void validate() const;
 };
 
 // Report: dynamic_points / static_points hold the current pixels of the
@@ -99,7 +102,7 @@ struct DmOptions {
 // regions_few_points_dynamic, and skipped_* = 1 naming why nothing was marked.
 class DmStage : public Stage {
  public:
-  explicit DmStage(DmOptions options = {}) : options_(std::move(options)) {}
+  explicit DmStage(DmOptions options = {}) : options_(std::move(options)) { options_.validate(); }
 
   std::string name() const override { return "dm"; }
   bool supports(Sensor) const override { return true; }

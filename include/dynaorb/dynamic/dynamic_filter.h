@@ -63,7 +63,8 @@ struct DynamicFilterOptions {
   int overlap_extraction = -1;
   bool overlaps_extraction(Sensor sensor, unsigned hardware_threads) const;
 
-  // Reads a preset file; InputError naming the file and the key for a missing
+  // Reads a preset file (the `%YAML:1.0` first line may be left out);
+  // InputError naming the file and the key for a missing
   // Dynamic.stages, an unknown stage, an unknown Dynamic.* key, an unknown or
   // ill-typed option of a stage, or a stage listed for a sensor it does not support.
   static DynamicFilterOptions load(const std::string& path);

@@ -93,6 +93,9 @@ struct StdynOptions {
 
   // Missing keys keep their defaults; keys are the member names.
   void read(const cv::FileNode& node);
+  // InputError naming the first option out of range (a NaN, a negative radius,
+  // a count or probability the estimators cannot use); read() and the stage call it.
+  void validate() const;
 };
 
 class StdynStage : public Stage {
