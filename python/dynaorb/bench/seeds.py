@@ -118,7 +118,7 @@ def _sequence(sensor: str, movers: int, seed: int, root: pathlib.Path, opts: See
 
 def _run(seq: Sequence, sensor: str, seed: int, condition: str, out: pathlib.Path, opts: SeedsOptions) -> dict:
     """One run of one condition (its record, also written to its folder)."""
-    from dynaorb.bench.suite_runner import _keep, _reused, run_spec
+    from dynaorb.bench.suite_runner import keep_record, reused_record, run_spec
 
     _, preset, labels, masks = CONDITIONS[condition]
     if condition == "full":
@@ -130,7 +130,7 @@ def _run(seq: Sequence, sensor: str, seed: int, condition: str, out: pathlib.Pat
     if masks:
         spec["masks"] = str(pathlib.Path(seq.path) / "dynamic_masks")
     record = {"sensor": sensor, "seed": seed, "condition": condition, "out": str(out)}
-    reused = _reused(out, "spec.json", spec, opts.resume)
+    reused = reused_record(out, "spec.json", spec, opts.resume)
     if reused is not None:
         return reused
     child = run_spec(out, spec, opts.timeout_s)
@@ -144,7 +144,7 @@ def _run(seq: Sequence, sensor: str, seed: int, condition: str, out: pathlib.Pat
                       frames=stats.get("frames"), tracked_frames=stats.get("tracked_frames"))
     else:
         record["error"] = (child.failure() or "no result written") + "\n" + child.log_tail()
-    return _keep(out, record)
+    return keep_record(out, record)
 
 
 def run_seeds(opts: SeedsOptions, progress=print) -> dict:

@@ -59,7 +59,7 @@ def _slug(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", text)
 
 
-def _reused(out: pathlib.Path, spec_name: str, spec: dict, resume: bool) -> dict | None:
+def reused_record(out: pathlib.Path, spec_name: str, spec: dict, resume: bool) -> dict | None:
     """The record an earlier bench left in out for the same spec (resume), else None."""
     record, spec_file = out / "record.json", out / spec_name
     if not (resume and record.is_file() and spec_file.is_file()):
@@ -79,7 +79,8 @@ def _start(out: pathlib.Path, spec_name: str, spec: dict) -> None:
     (out / spec_name).write_text(json.dumps(spec, indent=1))
 
 
-def _keep(out: pathlib.Path, record: dict) -> dict:
+def keep_record(out: pathlib.Path, record: dict) -> dict:
+    """A finished run's record, written where reused_record finds it (both suites use these)."""
     (out / "record.json").write_text(json.dumps(record, indent=1))
     return record
 
@@ -95,7 +96,7 @@ def _ours_record(case: Case, run: int, out: pathlib.Path, opts: BenchOptions) ->
             spec["labels"] = seq.labels
         elif opts.segment_model:
             spec.update(segment=opts.segment_model, segment_mode="async", segment_threads=1)
-    reused = _reused(out, "spec.json", spec, opts.resume)
+    reused = reused_record(out, "spec.json", spec, opts.resume)
     if reused is not None:
         return reused
     child = run_spec(out, spec, opts.timeout_s)
@@ -124,7 +125,7 @@ def _ours_record(case: Case, run: int, out: pathlib.Path, opts: BenchOptions) ->
             "stages", "labels", "summary", "all_dynamic_frames", "stage_failures")}
     else:
         record["error"] = (child.failure() or "no result written") + "\n" + child.log_tail()
-    return _keep(out, record)
+    return keep_record(out, record)
 
 
 def run_spec(out: pathlib.Path, spec: dict, timeout_s: float):
@@ -166,7 +167,7 @@ def _peer_record(seq: Sequence, run: int, root: pathlib.Path, python, vocabulary
 
     out = root / "runs" / _slug(f"{seq.key}:orbslam3") / str(run)
     spec = {"kind": seq.kind, "path": seq.path, "sensor": seq.sensor, "vocabulary": str(vocabulary)}
-    reused = _reused(out, "peer_spec.json", spec, resume)
+    reused = reused_record(out, "peer_spec.json", spec, resume)
     if reused is not None:
         return reused
     _start(out, "peer_spec.json", spec)
@@ -185,7 +186,7 @@ def _peer_record(seq: Sequence, run: int, root: pathlib.Path, python, vocabulary
         record["trajectory"] = str(out / "trajectory.tum")
         record["stats"] = {k: stats.get(k) for k in ("frames", "tracked_frames", "states", "init_s", "exit",
                                                       "pyorbslam3", "trajectory_poses")}
-    return _keep(out, record)
+    return keep_record(out, record)
 
 
 def machine() -> dict:
