@@ -592,7 +592,8 @@ void System::save_map(const std::string& path) {
   if (s.mapper) s.mapper->wait_idle();  // keyframes still queued are not yet in the graph
   std::lock_guard<std::mutex> lk(s.map.mutex());
   if (!s.builder) throw InputError(path, 0, "nothing to save: the system has no map yet");
-  map::save_map(path, s.map, *s.builder->calib(), s.sensor);
+  map::save_map(path, s.map, *s.builder->calib(), s.sensor,
+                s.loop_closer ? s.loop_closer->loop_edges() : map::LoopEdges{});
 }
 
 void System::load_map(const std::string& path) {
@@ -621,7 +622,10 @@ void System::load_map(const std::string& path) {
     map::LoadOptions o;
     o.vocabulary = s.options.vocabulary.get();
     o.database = s.database.get();
+    map::LoopEdges loop_edges;
+    o.loop_edges = &loop_edges;
     map::load_map(path, s.map, s.builder->calib(), s.sensor, o);
+    if (s.loop_closer) s.loop_closer->restore_loop_edges(std::move(loop_edges));
     s.tracker->map_replaced();
   }
   s.mapper->clear_queue();  // forgets the old map's recent points

@@ -101,6 +101,16 @@ void LoopCloser::reset() {
   counters_.loop_edges = 0;
 }
 
+std::map<long, std::set<long>> LoopCloser::loop_edges() const { return loop_edges_; }
+
+void LoopCloser::restore_loop_edges(std::map<long, std::set<long>> edges) {
+  long ends = 0;
+  for (const auto& [id, partners] : edges) ends += static_cast<long>(partners.size());
+  loop_edges_ = std::move(edges);
+  std::lock_guard<std::mutex> lk(queue_mutex_);
+  counters_.loop_edges = ends / 2;
+}
+
 LoopCloserCounters LoopCloser::counters() const {
   std::lock_guard<std::mutex> lk(queue_mutex_);
   return counters_;

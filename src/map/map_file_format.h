@@ -189,9 +189,9 @@ inline Reader open_payload(const std::string& path, const std::string& data, Map
   std::memcpy(&version, data.data() + 8, 4);
   std::memcpy(&payload, data.data() + 12, 8);
   std::memcpy(&checksum, data.data() + 20, 8);
-  if (version != kMapFormatVersion)
-    throw InputError(path, 0, "map file format version " + std::to_string(version) + ": this build reads version " +
-                                  std::to_string(kMapFormatVersion));
+  if (version < kMapFormatOldestVersion || version > kMapFormatVersion)
+    throw InputError(path, 0, "map file format version " + std::to_string(version) + ": this build reads versions " +
+                                  std::to_string(kMapFormatOldestVersion) + " to " + std::to_string(kMapFormatVersion));
   const std::uint64_t have = data.size() - kHeaderBytes;
   if (have < payload)
     throw InputError(path, 0, "truncated map file: " + std::to_string(data.size()) + " bytes, the header says " +

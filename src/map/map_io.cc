@@ -8,6 +8,8 @@
 #include <sstream>
 #include <type_traits>
 #include <unordered_map>
+#include <utility>
+#include <vector>
 
 #include "dynaorb/io/errors.h"
 #include "dynaorb/map/bag_of_words.h"
@@ -22,7 +24,7 @@ using namespace file;  // NOLINT: the format helpers of map_file_format.h
 // Restores what only Map, KeyFrame and MapPoint may set (friend of all three).
 class MapIo {
  public:
-  static void write(Writer& w, const Map& map) {
+  static void write(Writer& w, const Map& map, const LoopEdges& loop_edges) {
     w.put<std::int64_t>(map.next_keyframe_id_);
     w.put<std::int64_t>(map.next_point_id_);
     w.put<std::uint64_t>(map.keyframes_.size());
@@ -67,10 +69,20 @@ class MapIo {
         w.put<std::int32_t>(o.index);
       }
     }
+    // Version 2: the loop edges, each pair once (a < b), both ends in the map.
+    std::vector<std::pair<long, long>> edges;
+    for (const auto& [a, partners] : loop_edges)
+      for (long b : partners)
+        if (a < b && map.keyframes_.count(a) && map.keyframes_.count(b)) edges.emplace_back(a, b);
+    w.put<std::uint64_t>(edges.size());
+    for (const auto& [a, b] : edges) {
+      w.put<std::int64_t>(a);
+      w.put<std::int64_t>(b);
+    }
   }
 
   // Parses everything into new objects; the map is replaced only at the end.
-  static void read(Reader& r, Map& map, const std::shared_ptr<const Calibration>& calib,
+  static void read(Reader& r, std::uint32_t version, Map& map, const std::shared_ptr<const Calibration>& calib,
                    const LoadOptions& o) {
     const long next_kf = r.get<std::int64_t>("the id counters");
     const long next_point = r.get<std::int64_t>("the id counters");
@@ -158,6 +170,18 @@ class MapIo {
         r.fail("corrupt map file: map point " + std::to_string(id) + " is not observed by its reference keyframe");
       points[id] = p;
     }
+    LoopEdges loop_edges;
+    if (version >= 2) {
+      const std::size_t n_edges = r.count(16, "the loop edges");
+      for (std::size_t k = 0; k < n_edges; ++k) {
+        const long a = r.get<std::int64_t>("a loop edge"), b = r.get<std::int64_t>("a loop edge");
+        if (a == b || !kfs.count(a) || !kfs.count(b))
+          r.fail("corrupt map file: loop edge " + std::to_string(a) + "-" + std::to_string(b) +
+                 " does not join two keyframes of the file");
+        loop_edges[a].insert(b);
+        loop_edges[b].insert(a);
+      }
+    }
     if (r.remaining() != 0) r.fail("corrupt map file: " + std::to_string(r.remaining()) + " bytes left after the map");
 
     // Checked: replace the map.
@@ -177,13 +201,15 @@ class MapIo {
         if (o.database) o.database->add(*kf);
       }
     }
+    if (o.loop_edges) *o.loop_edges = std::move(loop_edges);
   }
 };
 
-void save_map(const std::string& path, const Map& map, const Calibration& calib, Sensor sensor) {
+void save_map(const std::string& path, const Map& map, const Calibration& calib, Sensor sensor,
+              const LoopEdges& loop_edges) {
   Writer w;
   put_info(w, calib, sensor);
-  MapIo::write(w, map);
+  MapIo::write(w, map, loop_edges);
   const std::string& payload = w.buffer();
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   if (!out) throw InputError(path, 0, "cannot write the map file");
@@ -248,7 +274,7 @@ MapFileInfo load_map(const std::string& path, Map& map, const std::shared_ptr<co
   MapFileInfo info = info_of(path, data, r);
   const std::string why = calibration_mismatch(info, *calib, sensor);
   if (!why.empty()) throw InputError(path, 0, "map refused: " + why);
-  MapIo::read(*r, map, calib, options);
+  MapIo::read(*r, info.version, map, calib, options);
   info.keyframes = static_cast<long>(map.keyframe_count());
   info.points = static_cast<long>(map.point_count());
   return info;

@@ -141,10 +141,12 @@ def test_no_loop_is_closed_on_the_forward_path(forward):
 # Last in the file: it loads another map into the looping run's system.
 def test_a_loaded_map_starts_loop_closing_afresh(runs, forward, tmp_path):
     """The loop closer names keyframes by id, and ids repeat across maps: the old map's loop
-    edges must not constrain the loaded map's essential graph (the map file holds none)."""
+    edges must not constrain the loaded map's essential graph (the forward map has none).
+    A map file keeps its own loop edges (format version 2): loaded elsewhere, they come back."""
     system = runs[True][0]
     before = system.map_summary()
     assert before["loop_edges"] >= 1 and before["loops_closed"] >= 1
+    system.save_map(str(tmp_path / "loop.map"))
     provider, forward_system, _ = forward
     forward_system.save_map(str(tmp_path / "forward.map"))
     system.load_map(str(tmp_path / "forward.map"))
@@ -155,3 +157,7 @@ def test_a_loaded_map_starts_loop_closing_afresh(runs, forward, tmp_path):
     results = [system.track_frame(provider.load(i)) for i in range(0, 30)]
     assert sum(r.state == "OK" for r in results) >= 25
     assert system.map_summary()["loops_closed"] == before["loops_closed"]
+    # The looping run's map, loaded into the forward run's system, brings its loop edges.
+    forward_system.load_map(str(tmp_path / "loop.map"))
+    assert forward_system.map_summary()["loop_edges"] == before["loop_edges"]
+    assert forward_system.map_summary()["keyframes"] == before["keyframes"]

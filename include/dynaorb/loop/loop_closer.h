@@ -107,6 +107,12 @@ class LoopCloser {
   bool idle() const;
   // Drops the queue, aborts global BA, forgets groups and loop edges (map reset).
   void reset();
+  // The loop edges (keyframe id -> loop partners), for a map file; the caller
+  // holds the map mutex.
+  std::map<long, std::set<long>> loop_edges() const;
+  // After reset() and a map loaded from a file: that map's loop edges (the
+  // essential graph of a later loop keeps them). The caller holds the map mutex.
+  void restore_loop_edges(std::map<long, std::set<long>> edges);
   LoopCloserCounters counters() const;
 
  private:

@@ -15,7 +15,10 @@
 //     descriptors, u_right, depth),
 //     every map point (id, first keyframe, position, reference keyframe,
 //     descriptor, normal, distance range, visible / found counters,
-//     observations as (keyframe id, keypoint index)).
+//     observations as (keyframe id, keypoint index)),
+//     from version 2: the loop closer's loop edges, as pairs of keyframe ids
+//     (the essential graph's loop constraints; version 1 files have none and
+//     still load).
 // Only what is in the map is written: culled keyframes and erased or fused
 // points are gone. The covisibility graph is not stored: loading rebuilds it
 // from the observations (UpdateConnections on every keyframe, by id), then
@@ -27,7 +30,9 @@
 // calibration) is an InputError naming the file, and the map is left as it
 // was: the whole file is parsed and checked before the map is replaced.
 #include <cstdint>
+#include <map>
 #include <memory>
+#include <set>
 #include <string>
 
 #include "dynaorb/map/calibration.h"
@@ -43,7 +48,11 @@ class Vocabulary;
 namespace dynaorb::map {
 
 inline constexpr char kMapMagic[8] = {'D', 'Y', 'N', 'A', 'O', 'M', 'A', 'P'};
-inline constexpr std::uint32_t kMapFormatVersion = 1;
+inline constexpr std::uint32_t kMapFormatVersion = 2;        // what save_map writes
+inline constexpr std::uint32_t kMapFormatOldestVersion = 1;  // the oldest load_map reads
+
+// Keyframe id -> the keyframes a loop closure joined it to (both directions).
+using LoopEdges = std::map<long, std::set<long>>;
 
 // What a map file was made with, from its header and first payload fields.
 struct MapFileInfo {
@@ -59,8 +68,11 @@ struct MapFileInfo {
 };
 
 // Writes the map (the caller holds map.mutex()). calib: the calibration of
-// the map's keyframes. Throws InputError when the file cannot be written.
-void save_map(const std::string& path, const Map& map, const Calibration& calib, Sensor sensor);
+// the map's keyframes; loop_edges: the loop closer's (edges naming a keyframe
+// no longer in the map are left out). Throws InputError when the file cannot
+// be written.
+void save_map(const std::string& path, const Map& map, const Calibration& calib, Sensor sensor,
+              const LoopEdges& loop_edges = {});
 
 // Reads and checks the header and the calibration summary only.
 MapFileInfo read_map_info(const std::string& path);
@@ -73,6 +85,7 @@ struct LoadOptions {
   const vocab::Vocabulary* vocabulary = nullptr;  // bags of words for the keyframes
   place::KeyFrameDatabase* database = nullptr;    // keyframes indexed (needs vocabulary)
   int covisibility_min_weight = 15;               // as KeyFrame::update_connections
+  LoopEdges* loop_edges = nullptr;                // filled with the file's loop edges (set only on success)
 };
 
 // Replaces the map's content with the file's (the caller holds map.mutex()).

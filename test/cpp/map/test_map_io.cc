@@ -193,8 +193,10 @@ TEST(MapIo, BadFilesAreRefusedWithTheFileNamed) {
   expect_refused("magic.map", s, "not a dynaorb map file");
   expect_refused("text.map", "hello, this is not a map at all, not even close", "not a dynaorb map file");
   s = bytes;
-  s[8] = 2;
-  expect_refused("version.map", s, "format version 2");
+  s[8] = 3;
+  expect_refused("version.map", s, "format version 3");
+  s[8] = 0;
+  expect_refused("version0.map", s, "format version 0");
   expect_refused("header.map", bytes.substr(0, 15), "truncated");
   expect_refused("truncated.map", bytes.substr(0, bytes.size() / 2), "truncated");
   expect_refused("one_short.map", bytes.substr(0, bytes.size() - 1), "truncated");
@@ -235,6 +237,70 @@ TEST(MapIo, BadFilesAreRefusedWithTheFileNamed) {
   }
   EXPECT_THROW(map::load_map(good.string(), target, t.calib, Sensor::kRGBD), InputError);
   EXPECT_EQ(target.keyframe_count(), kfs);
+}
+
+// The loop closer's loop edges (format version 2) survive a save and a load;
+// a version-1 file (no edge block) still loads, with none; an edge naming a
+// keyframe the file does not hold is refused.
+TEST(MapIo, LoopEdgesAreKeptAndVersionOneFilesStillLoad) {
+  REQUIRE_PLACE_DATA();
+  TestMap t;
+  ScratchDir dir;
+  std::lock_guard<std::mutex> lk(t.map.mutex());
+  const auto kfs = t.map.keyframes();
+  ASSERT_GE(kfs.size(), 3u);
+  const long a = kfs.front()->id, b = kfs.back()->id, c = kfs[1]->id;
+  const map::LoopEdges edges{{a, {b}}, {b, {a}}, {c, {999}}};  // 999: not in the map, left out
+  const fs::path file = dir.path() / "loop.map";
+  map::save_map(file.string(), t.map, *t.calib, Sensor::kStereo, edges);
+  auto load = [&](const fs::path& p, map::Map& into) {
+    std::lock_guard<std::mutex> l(into.mutex());
+    map::LoopEdges got{{12345, {1}}};  // replaced by the file's
+    map::LoadOptions o;
+    o.loop_edges = &got;
+    map::load_map(p.string(), into, t.calib, Sensor::kStereo, o);
+    return got;
+  };
+  map::Map loaded;
+  EXPECT_EQ(load(file, loaded), (map::LoopEdges{{a, {b}}, {b, {a}}}));
+  EXPECT_EQ(loaded.keyframe_count(), t.map.keyframe_count());
+
+  // Resealed: the payload length and checksum of an edited file.
+  auto resealed = [](std::string f) {
+    const std::uint64_t payload = f.size() - 28;
+    std::memcpy(&f[12], &payload, 8);
+    std::uint64_t h = 1469598103934665603ull;
+    for (size_t i = 28; i < f.size(); ++i) h = (h ^ static_cast<unsigned char>(f[i])) * 1099511628211ull;
+    std::memcpy(&f[20], &h, 8);
+    return f;
+  };
+  // Version 1: the same file without the edge block (count and one pair).
+  std::string v1 = read_bytes(file);
+  v1.resize(v1.size() - 8 - 16);
+  const std::uint32_t one = 1;
+  std::memcpy(&v1[8], &one, 4);
+  const fs::path old_file = dir.path() / "v1.map";
+  write_bytes(old_file, resealed(v1));
+  EXPECT_EQ(map::read_map_info(old_file.string()).version, 1u);
+  map::Map from_v1;
+  EXPECT_TRUE(load(old_file, from_v1).empty());
+  EXPECT_EQ(from_v1.keyframe_count(), t.map.keyframe_count());
+  EXPECT_EQ(from_v1.point_count(), t.map.point_count());
+
+  // An edge to a keyframe the file does not hold.
+  std::string bad = read_bytes(file);
+  const std::int64_t missing = 999999;
+  std::memcpy(&bad[bad.size() - 8], &missing, 8);
+  const fs::path bad_file = dir.path() / "bad_edge.map";
+  write_bytes(bad_file, resealed(bad));
+  map::Map untouched;
+  try {
+    load(bad_file, untouched);
+    ADD_FAILURE() << "an edge to keyframe 999999 was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("loop edge"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(untouched.keyframe_count(), 0u);
 }
 
 // Through the System: KITTI 06 mapped, saved, loaded by another System (the
