@@ -87,7 +87,7 @@ struct DmOptions {
   double keep_moving_overlap = 0.5;
 
   // Missing keys keep their defaults; keys are the member names.
-  // Throws InputError for a wrong type or an unknown few_points_policy.
+  // Throws InputError for a wrong type or a value validate() refuses.
   void read(const cv::FileNode& node);
   // InputError naming the first option out of range (a NaN, a count below 1,
   // a fraction outside (0, 1], an unknown policy); read() and DmStage call it.
