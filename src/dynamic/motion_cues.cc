@@ -17,6 +17,7 @@
 #include "dynaorb/core/stopwatch.h"
 #include "dynaorb/io/errors.h"
 #include "file_node_options.h"
+#include "option_checks.h"
 
 namespace dynaorb::dynamic {
 
@@ -347,17 +348,12 @@ double MotionCueOptions::forward_backward_max_for(Sensor sensor) const {
 }
 
 void MotionCueOptions::validate() const {
-  auto fail = [](const std::string& key, double value, const std::string& rule) {
-    std::ostringstream v;
-    v << value;
-    throw InputError("Dynamic.motion_cues option '" + key + "' is " + v.str() + "; it must be " + rule);
-  };
-  auto at_least = [&](const std::string& key, double value, double min) {
-    if (!(value >= min)) fail(key, value, ">= " + std::to_string(static_cast<int>(min)));
-  };
+  const detail::OptionChecks c("Dynamic.motion_cues");
+  auto fail = [&c](const std::string& key, double value, const std::string& rule) { c.fail(key, value, rule); };
+  auto at_least = [&c](const std::string& key, int value, int min) { c.at_least(key, value, min); };
   at_least("max_corners", max_corners, 1);
   if (!(quality_level > 0 && quality_level <= 1)) fail("quality_level", quality_level, "in (0, 1]");
-  at_least("min_distance", min_distance, 0);
+  if (!(min_distance >= 0)) fail("min_distance", min_distance, ">= 0");  // a double: NaN and -0.5 refused
   at_least("block_size", block_size, 1);
   if (use_harris && !(harris_k > 0 && harris_k < 1)) fail("harris_k", harris_k, "in (0, 1)");
   at_least("max_background_corners", max_background_corners, 0);

@@ -619,6 +619,8 @@ TEST(MotionCues, OptionsOutOfRangeAreRefusedByName) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const std::vector<std::pair<std::string, std::function<void(MotionCueOptions&)>>> bad = {
       {"max_corners", [](MotionCueOptions& o) { o.max_corners = 0; }},
+      {"min_distance", [](MotionCueOptions& o) { o.min_distance = -0.5; }},
+      {"min_distance", [&](MotionCueOptions& o) { o.min_distance = nan; }},
       {"quality_level", [](MotionCueOptions& o) { o.quality_level = 0; }},
       {"quality_level", [&](MotionCueOptions& o) { o.quality_level = nan; }},
       {"candidate_quality_level", [](MotionCueOptions& o) { o.candidate_quality_level = 0.01; }},
