@@ -26,6 +26,17 @@ std::string read_bytes(const fs::path& p) {
 
 void write_bytes(const fs::path& p, const std::string& s) { std::ofstream(p, std::ios::binary) << s; }
 
+// An edited map file with its header's payload length and FNV-1a checksum
+// made to match again (the 28-byte header: magic, version, length, checksum).
+std::string resealed(std::string f) {
+  const std::uint64_t payload = f.size() - 28;
+  std::memcpy(&f[12], &payload, 8);
+  std::uint64_t h = 1469598103934665603ull;
+  for (size_t i = 28; i < f.size(); ++i) h = (h ^ static_cast<unsigned char>(f[i])) * 1099511628211ull;
+  std::memcpy(&f[20], &h, 8);
+  return f;
+}
+
 // KITTI 06 keyframes 0..7 at their ground-truth poses; each keyframe's points
 // also observed by the next keyframe at the same keypoint (a graph, not
 // geometry), some points erased or fused, one keyframe culled.
@@ -205,12 +216,6 @@ TEST(MapIo, BadFilesAreRefusedWithTheFileNamed) {
   s[bytes.size() / 3] ^= 0x40;
   expect_refused("flipped.map", s, "checksum");
   // Payloads that pass the checksum but contradict themselves (a writer's bug).
-  auto resealed = [](std::string f) {
-    std::uint64_t h = 1469598103934665603ull;
-    for (size_t i = 28; i < f.size(); ++i) h = (h ^ static_cast<unsigned char>(f[i])) * 1099511628211ull;
-    std::memcpy(&f[20], &h, 8);
-    return f;
-  };
   std::uint64_t n_dist;
   std::memcpy(&n_dist, bytes.data() + 28 + 4 + 8 + 48, 8);
   const size_t kf_count_at = 28 + 4 + 8 + 48 + 8 + 8 * n_dist + 4 + 8 + 16;
@@ -265,15 +270,6 @@ TEST(MapIo, LoopEdgesAreKeptAndVersionOneFilesStillLoad) {
   EXPECT_EQ(load(file, loaded), (map::LoopEdges{{a, {b}}, {b, {a}}}));
   EXPECT_EQ(loaded.keyframe_count(), t.map.keyframe_count());
 
-  // Resealed: the payload length and checksum of an edited file.
-  auto resealed = [](std::string f) {
-    const std::uint64_t payload = f.size() - 28;
-    std::memcpy(&f[12], &payload, 8);
-    std::uint64_t h = 1469598103934665603ull;
-    for (size_t i = 28; i < f.size(); ++i) h = (h ^ static_cast<unsigned char>(f[i])) * 1099511628211ull;
-    std::memcpy(&f[20], &h, 8);
-    return f;
-  };
   // Version 1: the same file without the edge block (count and one pair).
   std::string v1 = read_bytes(file);
   v1.resize(v1.size() - 8 - 16);
