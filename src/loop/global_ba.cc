@@ -11,6 +11,7 @@
 #include "dynaorb/optimize/bundle_adjuster.h"
 #include "dynaorb/optimize/pose_graph.h"
 #include "dynaorb/core/stopwatch.h"
+#include "dynaorb/core/thread_priority.h"
 
 #include "loop.h"
 
@@ -20,6 +21,7 @@ using map::KeyFrame;
 using map::MapPoint;
 
 void LoopCloser::global_ba(long /*loop_keyframe*/) {
+  set_background_priority(o_.thread_nice);  // its own thread (loop_correction.cc)
   const auto t0 = Clock::now();
   optimize::BaProblem problem;
   std::vector<std::shared_ptr<KeyFrame>> kfs;

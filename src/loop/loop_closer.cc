@@ -10,6 +10,7 @@
 #include "dynaorb/optimize/bundle_adjuster.h"
 #include "dynaorb/optimize/pose_graph.h"
 #include "dynaorb/core/stopwatch.h"
+#include "dynaorb/core/thread_priority.h"
 
 #include "loop.h"
 
@@ -117,6 +118,7 @@ LoopCloserCounters LoopCloser::counters() const {
 }
 
 void LoopCloser::run() {
+  set_background_priority(o_.thread_nice);
   for (;;) {
     std::shared_ptr<KeyFrame> kf;
     {

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include "dynaorb/core/stopwatch.h"
+#include "dynaorb/core/thread_priority.h"
 
 namespace dynaorb::mapping {
 
@@ -102,6 +103,7 @@ std::vector<StageTimes> LocalMapper::take_stage_times() {
 }
 
 void LocalMapper::run() {
+  set_background_priority(o_.thread_nice);
   for (;;) {
     std::shared_ptr<KeyFrame> kf;
     {

@@ -371,9 +371,15 @@ PYBIND11_MODULE(_core, m) {
   py::class_<System>(m, "System")
       .def(py::init([](const Settings& s, const std::string& sensor, bool synchronous_mapping,
                        const py::object& vocabulary, bool loop_closing, bool global_ba, const py::object& dyn,
-                       const py::object& tracker) {
+                       const py::object& tracker, const py::object& background_nice) {
              SystemOptions o;
              if (!tracker.is_none()) o.tracker = tracker.cast<tracking::TrackerOptions>();
+             if (!background_nice.is_none()) {
+               const int nice = background_nice.cast<int>();
+               if (nice < 0 || nice > 19)
+                 throw py::value_error("background_nice must be in [0, 19], got " + std::to_string(nice));
+               o.mapping.thread_nice = o.loop.thread_nice = nice;
+             }
              o.synchronous_mapping = synchronous_mapping;
              o.vocabulary = vocabulary_from(vocabulary);
              o.loop_closing = loop_closing;
@@ -384,13 +390,16 @@ PYBIND11_MODULE(_core, m) {
            py::arg("settings"), py::arg("sensor"), py::arg("synchronous_mapping") = false,
            py::arg("vocabulary") = py::none(), py::arg("loop_closing") = true, py::arg("global_ba") = true,
            py::arg("dynamic") = py::none(), py::arg("tracker") = py::none(),
+           py::arg("background_nice") = py::none(),
            "synchronous_mapping: map each keyframe before tracking the next frame (repeatable runs).\n"
            "vocabulary: None, a Vocabulary or a path to one (ORBvoc.txt or binary): bag-of-words\n"
            "matching, a keyframe database and relocalisation of lost frames.\n"
            "loop_closing: detect and correct loops (needs the vocabulary); global_ba: a global\n"
            "bundle adjustment after each loop correction.\n"
            "dynamic: None (off), a DynamicFilterOptions or a preset file: the dynamic-object front end.\n"
-           "tracker: None (the defaults) or a TrackerOptions.")
+           "tracker: None (the defaults) or a TrackerOptions.\n"
+           "background_nice: None (the default, 10) or 0-19: the nice value of the local mapping, loop\n"
+           "closing and global BA threads above the process's (0: tracking's priority).")
       .def("track_mono",
            [](System& s, const py::object& image, double stamp, const py::object& mask, const py::object& labels) {
              cv::Mat i = as_mat(image, "image"), k = as_mat(mask, "mask"), l = as_mat(labels, "labels");

@@ -110,6 +110,11 @@ NodeConfig read_config(const ros::NodeHandle& pnh) {
   cfg.system.loop_closing = param(pnh, "loop_closing", true);
   cfg.system.localization_only = param(pnh, "localization_only", false);
   cfg.system.mapping.ba_threads = param(pnh, "ba_threads", cfg.system.mapping.ba_threads);
+  // Local mapping, loop closing and global BA run this much nicer than the
+  // node (core/thread_priority.h), so tracking gets the CPU first.
+  const int nice = param(pnh, "background_nice", cfg.system.mapping.thread_nice);
+  if (nice < 0 || nice > 19) throw InputError("~background_nice must be in [0, 19], got " + std::to_string(nice));
+  cfg.system.mapping.thread_nice = cfg.system.loop.thread_nice = nice;
   // Lost this long (seconds of image stamps): the map is given up for a new
   // one, whose world is unrelated (TrackingStatus.map counts them); 0: never.
   cfg.system.tracker.new_map_after_lost_s =

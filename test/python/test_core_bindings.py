@@ -1,6 +1,11 @@
 """The pybind11 module: providers over ../shared/data, settings and System input checks."""
 from __future__ import annotations
 
+import os
+import pathlib
+import threading
+import time
+
 import numpy as np
 import pytest
 
@@ -100,3 +105,38 @@ def test_run_takes_tracker_options(data, tmp_path):
                                    tracker={"min_init_keypoints": 400}))
     assert stats["tracker_options"] == {"min_init_keypoints": 400}
     assert stats["tracked_frames"] >= 1
+
+
+def _thread_nices() -> list[int]:
+    """Nice values of this process's threads (field 19 of /proc/self/task/*/stat)."""
+    out = []
+    for task in pathlib.Path("/proc/self/task").iterdir():
+        try:
+            stat = (task / "stat").read_text()
+        except OSError:  # the thread ended meanwhile
+            continue
+        out.append(int(stat[stat.rindex(")") + 2:].split()[16]))
+    return out
+
+
+@pytest.mark.skipif(not pathlib.Path("/proc/self/task").is_dir(), reason="per-thread nice values are Linux's")
+def test_background_threads_run_nicer_than_tracking(data):
+    """The local mapping and loop closing threads take background_nice above
+    the process's nice value; the calling thread keeps its own."""
+    provider = core().open_dataset("tum", str(data / "tum/rgbd_dataset_freiburg3_walking_xyz_fragment"))
+    settings = provider.default_settings()
+    base = os.getpriority(os.PRIO_PROCESS, 0)
+    if base > 12:
+        pytest.skip(f"the tests already run at nice {base}")
+    before = _thread_nices().count(base + 7)
+    system = core().System(settings, "rgbd", background_nice=7)
+    frame = provider.load(0)
+    system.track_rgbd(frame.image, frame.depth, frame.stamp)  # the threads start with the first frame
+    deadline = time.monotonic() + 5
+    while _thread_nices().count(base + 7) < before + 1 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert _thread_nices().count(base + 7) >= before + 1  # local mapping (and loop closing, with a vocabulary)
+    assert os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) == base
+    del system
+    with pytest.raises(ValueError, match="background_nice must be in \\[0, 19\\], got 20"):
+        core().System(settings, "rgbd", background_nice=20)

@@ -75,6 +75,9 @@ struct LoopCloserOptions {
   bool global_ba = true;
   int global_ba_iterations = 10;    // ORB-SLAM2: 10
   int threads = 1;                  // Ceres threads (pose graph, global BA)
+  // The loop closing and global BA threads' nice value above the process's
+  // (core/thread_priority.h). 0: the same priority as tracking.
+  int thread_nice = 10;
 };
 
 struct LoopCloserCounters {

@@ -48,6 +48,9 @@ struct LocalMapperOptions {
   int redundant_observers = 3;      //   is seen by this many others at a similar scale
   bool local_ba = true;
   int ba_threads = 1;
+  // The mapping thread's nice value above the process's (core/thread_priority.h):
+  // tracking gets the CPU first when the cores are busy. 0: the same priority.
+  int thread_nice = 10;
 };
 
 struct LocalMapperCounters {

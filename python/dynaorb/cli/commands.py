@@ -17,7 +17,7 @@ def cmd_run(args) -> int:
                                    segment_threads=args.segment_threads, max_mask_age=args.max_mask_age,
                                    progress=not args.quiet,
                                    synchronous_mapping=not args.async_mapping, realtime=args.realtime,
-                                   save_map=args.save_map,
+                                   background_nice=args.background_nice, save_map=args.save_map,
                                    load_map=args.load_map, localization=args.localization,
                                    tracker=key_values(args.tracker, "--tracker")))
     print(summary_line(args.out, stats))

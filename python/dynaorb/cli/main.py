@@ -53,6 +53,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="deliver the frames at RATE x the recording's rate (by their stamps; default 1 when "
                         "given), as a live camera would; with --async-mapping this gives local mapping the "
                         "time between frames that a camera gives it (default: as fast as tracking goes)")
+    r.add_argument("--background-nice", type=int, choices=range(0, 20), metavar="0-19", default=None,
+                   help="nice value of the local mapping, loop closing and global BA threads above the "
+                        "process's, so tracking gets the CPU first on a busy machine (default 10; 0: the "
+                        "same priority as tracking)")
     r.add_argument("--save-map", metavar="OUT.map", help="write the map to this file after the run")
     r.add_argument("--load-map", metavar="IN.map",
                    help="start from a saved map (the first frame is relocalised in it; needs a vocabulary)")

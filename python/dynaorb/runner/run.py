@@ -95,6 +95,10 @@ class RunOptions:
     # takes them. What a concurrent local mapping (synchronous_mapping False)
     # gets on a live camera: the time between frames (see runner/pacing.py).
     realtime: float = 0.0
+    # Nice value of the local mapping, loop closing and global BA threads above
+    # the process's (0-19): tracking gets the CPU first when the cores are
+    # busy. None: the core's default (10).
+    background_nice: int | None = None
     save_map: str | None = None     # the map written here after the run
     load_map: str | None = None     # start from this saved map (needs a vocabulary)
     localization: bool = False      # localisation only: no new keyframes or map points
@@ -339,7 +343,7 @@ def _run(_core, opts: RunOptions, segmenter, semantic, tracker) -> dict:
             dynamic.movable_classes = [int(i) for i in segmenter.card.movable]
     system = _core.System(settings, provider.sensor, synchronous_mapping=opts.synchronous_mapping,
                           vocabulary=vocabulary, dynamic=dynamic if dynamic_on else None,
-                          tracker=tracker)
+                          tracker=tracker, background_nice=opts.background_nice)
     map_io = {}
     if opts.load_map:
         t0 = time.perf_counter()
@@ -469,6 +473,7 @@ def _run(_core, opts: RunOptions, segmenter, semantic, tracker) -> dict:
         "map": system.map_summary(),
         "synchronous_mapping": opts.synchronous_mapping,
         "realtime": pacer.summary() if pacer is not None else None,
+        "background_nice": opts.background_nice,
         "tracker_options": dict(opts.tracker or {}),
         "localization": opts.localization,
         "map_file": map_io or None,

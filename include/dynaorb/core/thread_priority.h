@@ -1,0 +1,19 @@
+#pragma once
+// Scheduling priority of background threads. Tracking is the latency-critical
+// thread of a SLAM system; local mapping, loop closing and global BA are
+// background work whose results may come a frame later. On a machine with
+// fewer cores than busy threads, a lower priority (a higher nice value) for
+// the background threads hands the tracking thread its CPU first, while an
+// idle core still runs them at full speed.
+
+namespace dynaorb {
+
+// Sets the calling thread's nice value to the process's (its main thread's)
+// plus `increment`, at most 19 (Linux keeps a nice value per thread; raising
+// it needs no privilege). Idempotent: a thread started by a background thread
+// (which inherits its nice value) calls it again and gets the same value.
+// <= 0: nothing, true. false: the platform has no per-thread nice, or the
+// call was refused; the thread then runs at the priority it had.
+bool set_background_priority(int increment);
+
+}  // namespace dynaorb
