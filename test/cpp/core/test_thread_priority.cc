@@ -7,14 +7,45 @@
 #include "dynaorb/core/thread_priority.h"
 
 #if defined(__linux__)
+#include <dirent.h>
 #include <sys/resource.h>
 #include <sys/syscall.h>
 #include <unistd.h>
+
+#include <chrono>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <string>
+
+#include "dynaorb/map/map.h"
+#include "dynaorb/mapping/local_mapper.h"
 
 namespace {
 
 int own_nice() { return ::getpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid))); }
 int process_nice() { return ::getpriority(PRIO_PROCESS, static_cast<id_t>(::getpid())); }
+
+// Nice values of this process's threads, from /proc (field 19 of stat).
+std::multiset<int> thread_nices() {
+  std::multiset<int> out;
+  DIR* dir = ::opendir("/proc/self/task");
+  if (!dir) return out;
+  while (dirent* e = ::readdir(dir)) {
+    if (e->d_name[0] == '.') continue;
+    std::ifstream f(std::string("/proc/self/task/") + e->d_name + "/stat");
+    std::string line;
+    std::getline(f, line);
+    const auto close = line.rfind(')');  // the name may hold spaces
+    if (close == std::string::npos) continue;
+    std::istringstream rest(line.substr(close + 2));
+    std::string field;
+    for (int i = 3; i <= 19 && rest >> field; ++i)
+      if (i == 19) out.insert(std::stoi(field));
+  }
+  ::closedir(dir);
+  return out;
+}
 
 }  // namespace
 
@@ -55,43 +86,6 @@ TEST(ThreadPriority, ZeroChangesNothingAndLargeValuesStopAtNineteen) {
   EXPECT_EQ(zero, process_nice());
   EXPECT_EQ(large, 19);
 }
-#endif
-
-#if defined(__linux__)
-#include <chrono>
-#include <dirent.h>
-#include <fstream>
-#include <set>
-#include <sstream>
-#include <string>
-
-#include "dynaorb/map/map.h"
-#include "dynaorb/mapping/local_mapper.h"
-
-namespace {
-
-// Nice values of this process's threads, from /proc (field 19 of stat).
-std::multiset<int> thread_nices() {
-  std::multiset<int> out;
-  DIR* dir = ::opendir("/proc/self/task");
-  if (!dir) return out;
-  while (dirent* e = ::readdir(dir)) {
-    if (e->d_name[0] == '.') continue;
-    std::ifstream f(std::string("/proc/self/task/") + e->d_name + "/stat");
-    std::string line;
-    std::getline(f, line);
-    const auto close = line.rfind(')');  // the name may hold spaces
-    if (close == std::string::npos) continue;
-    std::istringstream rest(line.substr(close + 2));
-    std::string field;
-    for (int i = 3; i <= 19 && rest >> field; ++i)
-      if (i == 19) out.insert(std::stoi(field));
-  }
-  ::closedir(dir);
-  return out;
-}
-
-}  // namespace
 
 TEST(ThreadPriority, LocalMappingThreadRunsAtItsOption) {
   const int base = process_nice();
