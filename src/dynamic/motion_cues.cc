@@ -349,39 +349,37 @@ double MotionCueOptions::forward_backward_max_for(Sensor sensor) const {
 
 void MotionCueOptions::validate() const {
   const detail::OptionChecks c("Dynamic.motion_cues");
-  auto fail = [&c](const std::string& key, double value, const std::string& rule) { c.fail(key, value, rule); };
-  auto at_least = [&c](const std::string& key, int value, int min) { c.at_least(key, value, min); };
-  at_least("max_corners", max_corners, 1);
-  if (!(quality_level > 0 && quality_level <= 1)) fail("quality_level", quality_level, "in (0, 1]");
-  if (!(min_distance >= 0)) fail("min_distance", min_distance, ">= 0");  // a double: NaN and -0.5 refused
-  at_least("block_size", block_size, 1);
-  if (use_harris && !(harris_k > 0 && harris_k < 1)) fail("harris_k", harris_k, "in (0, 1)");
-  at_least("max_background_corners", max_background_corners, 0);
+  c.at_least("max_corners", max_corners, 1);
+  c.between("quality_level", quality_level, 0, 1, true);
+  if (!(min_distance >= 0)) c.fail("min_distance", min_distance, ">= 0");  // a double: NaN and -0.5 refused
+  c.at_least("block_size", block_size, 1);
+  if (use_harris) c.between("harris_k", harris_k, 0, 1, false);
+  c.at_least("max_background_corners", max_background_corners, 0);
   const std::string own_quality = "in (0, quality_level) to be used, or <= 0 (off)";
   if (std::isnan(candidate_quality_level) || candidate_quality_level >= quality_level)
-    fail("candidate_quality_level", candidate_quality_level, own_quality);
+    c.fail("candidate_quality_level", candidate_quality_level, own_quality);
   if (std::isnan(candidate_quality_level_rgbd) || candidate_quality_level_rgbd >= quality_level)
-    fail("candidate_quality_level_rgbd", candidate_quality_level_rgbd,
-         own_quality + " for RGB-D (< 0: as candidate_quality_level)");
-  at_least("subpix_window", subpix_window, 0);
-  at_least("lk_window", lk_window, 3);
-  at_least("lk_levels", lk_levels, 0);
-  at_least("lk_max_iterations", lk_max_iterations, 1);
-  if (!(lk_epsilon > 0) || std::isinf(lk_epsilon)) fail("lk_epsilon", lk_epsilon, "a finite number > 0");
+    c.fail("candidate_quality_level_rgbd", candidate_quality_level_rgbd,
+           own_quality + " for RGB-D (< 0: as candidate_quality_level)");
+  c.at_least("subpix_window", subpix_window, 0);
+  c.at_least("lk_window", lk_window, 3);
+  c.at_least("lk_levels", lk_levels, 0);
+  c.at_least("lk_max_iterations", lk_max_iterations, 1);
+  c.positive("lk_epsilon", lk_epsilon);
   for (const auto& [key, value] : {std::pair<const char*, double>{"forward_backward_max", forward_backward_max},
                                    {"forward_backward_max_rgbd", forward_backward_max_rgbd},
                                    {"forward_backward_max_mono", forward_backward_max_mono},
                                    {"stereo_depth_forward_backward_max", stereo_depth_forward_backward_max}})
-    if (std::isnan(value)) fail(key, value, "a number of pixels (<= 0: no backward check)");
-  at_least("border", border, 0);
-  at_least("depth_edge_radius", depth_edge_radius, 0);
+    if (std::isnan(value)) c.fail(key, value, "a number of pixels (<= 0: no backward check)");
+  c.at_least("border", border, 0);
+  c.at_least("depth_edge_radius", depth_edge_radius, 0);
   if (!(depth_edge_max_ratio >= 0) || std::isinf(depth_edge_max_ratio))
-    fail("depth_edge_max_ratio", depth_edge_max_ratio, "a finite ratio >= 0 (0: no depth-edge check)");
+    c.fail("depth_edge_max_ratio", depth_edge_max_ratio, "a finite ratio >= 0 (0: no depth-edge check)");
   if (!(ransac_reprojection_px > 0) || std::isinf(ransac_reprojection_px))
-    fail("ransac_reprojection_px", ransac_reprojection_px, "a finite number of pixels > 0");
-  if (!(ransac_confidence > 0 && ransac_confidence < 1)) fail("ransac_confidence", ransac_confidence, "in (0, 1)");
-  at_least("ransac_iterations", ransac_iterations, 1);
-  if (!(min_ego_points >= 8)) fail("min_ego_points", min_ego_points, ">= 8 (the fundamental matrix's 8 points)");
+    c.fail("ransac_reprojection_px", ransac_reprojection_px, "a finite number of pixels > 0");
+  c.between("ransac_confidence", ransac_confidence, 0, 1, false);
+  c.at_least("ransac_iterations", ransac_iterations, 1);
+  if (!(min_ego_points >= 8)) c.fail("min_ego_points", min_ego_points, ">= 8 (the fundamental matrix's 8 points)");
 }
 
 double MotionCueOptions::candidate_quality_level_for(Sensor sensor) const {
