@@ -51,6 +51,9 @@ void LiOptions::read(const cv::FileNode& node) {
   read_option(node, "lambda_hinge", lambda_hinge);
   read_option(node, "lambda_pen", lambda_pen);
   read_option(node, "min_hit_directions", min_hit_directions);
+  read_option(node, "keep_frames", keep_frames);
+  read_option(node, "keep_covered_fraction", keep_covered_fraction);
+  read_option(node, "keep_min_hits", keep_min_hits);
   validate();
 }
 
@@ -82,6 +85,8 @@ void LiOptions::validate() const {
   if (!(lambda_occ > lambda_hinge && lambda_hinge > 0) || lambda_pen < 0)
     fail("needs lambda_occ > lambda_hinge > 0 (eq. 11) and lambda_pen >= 0");
   if (min_hit_directions < 0 || min_hit_directions > 4) fail("'min_hit_directions' must be in [0, 4]");
+  if (keep_frames < 0 || keep_min_hits < 1) fail("'keep_frames' must be >= 0 and 'keep_min_hits' >= 1");
+  if (!(keep_covered_fraction > 0 && keep_covered_fraction <= 1)) fail("'keep_covered_fraction' must be in (0, 1]");
 }
 
 }  // namespace dynaorb::dynamic

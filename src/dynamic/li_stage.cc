@@ -1,5 +1,6 @@
 #include "dynaorb/dynamic/li_stage.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "dynaorb/core/stopwatch.h"
@@ -12,6 +13,41 @@ namespace {
 
 bool is_grey(const cv::Mat& m) { return !m.empty() && m.type() == CV_8UC1; }
 
+// The share of `rect` that the union of `others` covers.
+double covered_share(const cv::Rect& rect, const std::vector<cv::Rect>& others) {
+  if (rect.area() == 0) return 0;
+  cv::Mat covered(rect.size(), CV_8UC1, cv::Scalar(0));
+  for (const cv::Rect& r : others) {
+    const cv::Rect overlap = r & rect;
+    if (overlap.area() > 0) covered(overlap - rect.tl()).setTo(1);
+  }
+  return cv::countNonZero(covered) / static_cast<double>(rect.area());
+}
+
+// The median flow of the tracks that start inside `rect` (previous image):
+// of its dynamic ones when there are at least `min_dynamic` (enough to make a
+// moving object), else of all; none: no shift.
+cv::Point median_flow(const cv::Rect& rect, const std::vector<LiTrack>& tracks, int min_dynamic) {
+  std::vector<float> dx, dy, dx_dynamic, dy_dynamic;
+  for (const LiTrack& t : tracks)
+    if (rect.contains(cv::Point(cvRound(t.prev.x), cvRound(t.prev.y)))) {
+      dx.push_back(t.cur.x - t.prev.x);
+      dy.push_back(t.cur.y - t.prev.y);
+      if (t.dynamic) {
+        dx_dynamic.push_back(dx.back());
+        dy_dynamic.push_back(dy.back());
+      }
+    }
+  if (static_cast<int>(dx_dynamic.size()) >= min_dynamic) {
+    dx.swap(dx_dynamic);
+    dy.swap(dy_dynamic);
+  }
+  if (dx.empty()) return {0, 0};
+  std::nth_element(dx.begin(), dx.begin() + dx.size() / 2, dx.end());
+  std::nth_element(dy.begin(), dy.begin() + dy.size() / 2, dy.end());
+  return {cvRound(dx[dx.size() / 2]), cvRound(dy[dy.size() / 2])};
+}
+
 }  // namespace
 
 LiStage::LiStage(LiOptions options) : o_(std::move(options)) { o_.validate(); }
@@ -19,21 +55,26 @@ LiStage::LiStage(LiOptions options) : o_(std::move(options)) { o_.validate(); }
 void LiStage::process(Context& ctx, StageReport& report) {
   const auto t_start = Clock::now();
   last_ = LiFrameDetail();
+  detect(ctx, report);
+  if (o_.keep_frames > 0) carry_rectangles(ctx, report);
+  report.values["total_ms"] = ms_since(t_start);
+}
+
+void LiStage::detect(Context& ctx, StageReport& report) {
   auto& v = report.values;
-  auto finish = [&] { v["total_ms"] = ms_since(t_start); };
 
   if (!ctx.calib) {
     v["skipped_no_calibration"] = 1;
-    return finish();
+    return;
   }
   const cv::Mat& grey = ctx.current.grey;
   if (!is_grey(grey) || grey.cols < 32 || grey.rows < 32) {
     v["skipped_bad_input"] = 1;
-    return finish();
+    return;
   }
   if (!is_grey(ctx.current.right) || ctx.current.right.size() != grey.size()) {
     v["skipped_no_right"] = 1;
-    return finish();
+    return;
   }
   if (ctx.dynamic.empty() || ctx.dynamic.size() != grey.size() || ctx.dynamic.type() != CV_8UC1)
     ctx.dynamic = cv::Mat::zeros(grey.size(), CV_8UC1);
@@ -45,7 +86,7 @@ void LiStage::process(Context& ctx, StageReport& report) {
     v["disparity_ms"] = ms_since(t0);
     if (last_.disparity.empty()) {
       v["skipped_bad_input"] = 1;
-      return finish();
+      return;
     }
     v["disparity_valid"] = cv::countNonZero(last_.disparity) / static_cast<double>(grey.total());
     if (ctx.current.depth.empty() && ctx.calib->bf > 0) {
@@ -55,12 +96,12 @@ void LiStage::process(Context& ctx, StageReport& report) {
 
     if (!ctx.previous) {
       v["skipped_no_previous"] = 1;
-      return finish();
+      return;
     }
     const cv::Mat& prev = ctx.previous->grey;
     if (!is_grey(prev) || prev.size() != grey.size()) {
       v["skipped_previous_mismatch"] = 1;
-      return finish();
+      return;
     }
 
     // Step 2: dynamic feature points (eq. 1-3).
@@ -75,7 +116,7 @@ void LiStage::process(Context& ctx, StageReport& report) {
     v["f_inliers"] = e.f_inliers;
     if (!e.failure.empty()) {
       v[e.failure] = 1;
-      return finish();
+      return;
     }
     std::vector<cv::Point2f> dyn_pts;
     std::vector<float> dyn_disp;
@@ -101,14 +142,44 @@ void LiStage::process(Context& ctx, StageReport& report) {
     v["rois"] = static_cast<double>(last_.clusters.size());
     if (last_.clusters.empty()) {
       v["no_moving_object"] = 1;
-      return finish();
+      return;
     }
     segment_and_mark(grey, ctx, report);
   } catch (const cv::Exception&) {
     // OpenCV refusing an input it should not have been given: degrade, never crash.
     v["failed_opencv"] = 1;
   }
-  finish();
+}
+
+void LiStage::carry_rectangles(Context& ctx, StageReport& report) {
+  if (!ctx.previous || ctx.dynamic.empty()) {  // no frame to carry them from
+    kept_.clear();
+    return;
+  }
+  const cv::Rect image(0, 0, ctx.dynamic.cols, ctx.dynamic.rows);
+  std::vector<KeptRectangle> found;  // this frame's new rectangles
+  for (const cv::Rect& r : last_.rectangles) found.push_back({r & image, 0, 1});
+  std::vector<KeptRectangle> next;
+  for (KeptRectangle k : kept_) {
+    k.rect += median_flow(k.rect, last_.epipolar.tracks, o_.min_cluster_points);
+    k.rect &= image;
+    if (k.rect.area() == 0) continue;
+    // A new rectangle that mostly covers it, or lies mostly inside it, is
+    // the same object found again.
+    for (KeptRectangle& f : found)
+      if (covered_share(k.rect, {f.rect}) >= o_.keep_covered_fraction ||
+          covered_share(f.rect, {k.rect}) >= o_.keep_covered_fraction)
+        f.hits = std::max(f.hits, k.hits + 1);
+    if (covered_share(k.rect, last_.rectangles) >= o_.keep_covered_fraction) continue;  // found anew
+    if (++k.age > o_.keep_frames || k.hits < o_.keep_min_hits) continue;
+    ctx.dynamic(k.rect).setTo(255);
+    last_.kept.push_back(k.rect);
+    next.push_back(k);
+  }
+  next.insert(next.end(), found.begin(), found.end());
+  kept_ = std::move(next);
+  report.values["kept_rectangles"] = static_cast<double>(last_.kept.size());
+  report.regions += static_cast<int>(last_.kept.size());
 }
 
 void LiStage::segment_and_mark(const cv::Mat& grey, Context& ctx, StageReport& report) {

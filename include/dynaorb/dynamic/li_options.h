@@ -133,6 +133,24 @@ struct LiOptions {
   // fewer: the cluster is a false alarm (the paper's Fig. 7/8 discussion).
   int min_hit_directions = 2;
 
+  // Ours, 0 (the paper, which judges every frame on its own): a dynamic
+  // rectangle stays dynamic for up to this many frames after the last frame
+  // that found it, moved each frame by the median flow of the LK tracks that
+  // start inside it, until a rectangle found anew overlaps it. An object
+  // travelling parallel to the camera's translation passes eq. 2-3 in some
+  // frames and not in others; a moving object does not stop from one frame
+  // to the next (the same reasoning as Dynamic.dm.keep_moving_frames_mono).
+  int keep_frames = 0;
+  // A kept rectangle counts as found anew (and is dropped, the new one kept
+  // instead) when this frame's new rectangles cover at least this share of it.
+  double keep_covered_fraction = 0.5;
+  // Only a rectangle found in at least this many frames is kept: a new
+  // rectangle counts the frames of the kept ones it covers or is covered by
+  // (keep_covered_fraction either way), plus its own. 1: every rectangle. A
+  // false alarm of one frame (a static surface whose flow passed T_epi
+  // once) then is not carried.
+  int keep_min_hits = 2;
+
   // Missing keys keep their defaults; keys are the member names. Wrong types
   // and out-of-range values throw InputError naming the key.
   void read(const cv::FileNode& node);

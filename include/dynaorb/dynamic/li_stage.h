@@ -13,7 +13,9 @@
 //   6. co-planar / hinge / occlusion boundaries (eq. 9-11, li_boundaries.h);
 //   7. a rectangle per object from the occlusion boundaries around its
 //      dynamic points (li_regions.h), ORed into ctx.dynamic: no ORB feature is
-//      extracted inside it (Sec. III-C).
+//      extracted inside it (Sec. III-C);
+//   8. (ours, LiOptions::keep_frames > 0) the rectangles of the last frames
+//      that no new one overlaps, moved by the flow, ORed in too.
 // It computes its own motion cues (the paper's FAST + LK), so it asks the
 // filter for none, and it reads no semantic input.
 //
@@ -48,6 +50,7 @@ struct LiFrameDetail {
   LiBoundaries boundaries;
   std::vector<LiRegion> regions;     // one per cluster
   std::vector<cv::Rect> rectangles;  // the dynamic ones
+  std::vector<cv::Rect> kept;        // earlier frames' rectangles carried into this one (keep_frames)
 };
 
 class LiStage : public Stage {
@@ -66,8 +69,10 @@ class LiStage : public Stage {
   // slic_ms, planes_ms, boundaries_ms, rectangles_ms, total_ms); on degenerate
   // input one of skipped_no_calibration, skipped_bad_input, skipped_no_right,
   // skipped_no_previous, skipped_previous_mismatch, too_few_points, f_failed,
-  // no_moving_object, failed_opencv (= 1) and nothing is marked.
+  // no_moving_object, failed_opencv (= 1) and nothing new is marked;
+  // kept_rectangles: the earlier frames' rectangles marked again (keep_frames).
   void process(Context& ctx, StageReport& report) override;
+  void reset() override { kept_.clear(); }
 
   const LiOptions& options() const { return o_; }
   const LiFrameDetail& last() const { return last_; }
@@ -76,9 +81,22 @@ class LiStage : public Stage {
   // Steps 4-7 on this frame's clusters: superpixels, planes, boundary labels,
   // rectangles ORed into ctx.dynamic.
   void segment_and_mark(const cv::Mat& grey, Context& ctx, StageReport& report);
+  // Steps 1-7 (process without the time and the carried rectangles).
+  void detect(Context& ctx, StageReport& report);
+  // Step 8: moves the kept rectangles by this frame's flow; drops those the
+  // new rectangles cover, those older than keep_frames and those found in
+  // fewer than keep_min_hits frames; marks the rest; keeps the new ones.
+  void carry_rectangles(Context& ctx, StageReport& report);
+
+  struct KeptRectangle {
+    cv::Rect rect;
+    int age = 0;   // frames since a new rectangle last found it
+    int hits = 1;  // frames a new rectangle found it in (keep_min_hits)
+  };
 
   LiOptions o_;
   LiFrameDetail last_;
+  std::vector<KeptRectangle> kept_;
 };
 
 }  // namespace dynaorb::dynamic

@@ -6,7 +6,9 @@
 // monocular sensor) marks nothing and says why.
 #include <gtest/gtest.h>
 
+#include <memory>
 #include <opencv2/core.hpp>
+#include <string>
 
 #include "dynaorb/dynamic/li_stage.h"
 #include "dynaorb/io/errors.h"
@@ -152,6 +154,59 @@ TEST_F(LiStageTest, DegenerateInputMarksNothing) {
   EXPECT_EQ(stage.name(), "li");
 }
 
+// keep_frames (ours): a rectangle found on the moving box in two frames
+// (keep_min_hits) stays marked while later frames find nothing (here the
+// same image again: no motion at all), for keep_frames frames. Found in one
+// frame only, after a reset, or with the paper's 0: nothing is carried.
+TEST_F(LiStageTest, KeepsAFoundRectangleForKeepFrames) {
+  const cv::Mat box = pair_->cur_view.object == dynaorb::test::li::kMoverIndex;
+  const double box_px = cv::countNonZero(box);
+  const auto still = std::make_shared<const FrameData>(*pair_->cur);
+  struct Out {
+    double box_covered = 0;
+    int marked = 0;
+    StageReport report;
+  };
+  auto run = [&](LiStage& stage, std::shared_ptr<const FrameData> prev) {
+    FrameData cur = *pair_->cur;
+    Context ctx = stereo_context(calib_, cur, std::move(prev), cv::Mat::zeros(cur.grey.size(), CV_8UC1));
+    Out out;
+    stage.process(ctx, out.report);
+    out.marked = cv::countNonZero(ctx.dynamic);
+    out.box_covered = cv::countNonZero(box & (ctx.dynamic != 0)) / box_px;
+    return out;
+  };
+  LiOptions o;
+  o.keep_frames = 2;
+  LiStage stage(o);
+  const Out found = run(stage, pair_->prev);
+  ASSERT_GE(found.report.values.at("rectangles"), 1);
+  ASSERT_GT(found.box_covered, 0.8);
+  EXPECT_EQ(run(stage, still).marked, 0) << "found in one frame only";
+  run(stage, pair_->prev);
+  run(stage, pair_->prev);  // found in two frames in a row
+  for (int frame = 1; frame <= 2; ++frame) {
+    const Out carried = run(stage, still);
+    EXPECT_EQ(carried.report.values.count("rectangles") ? carried.report.values.at("rectangles") : 0, 0) << frame;
+    EXPECT_GE(carried.report.values.at("kept_rectangles"), 1) << frame;
+    EXPECT_GT(carried.box_covered, 0.8) << frame;  // no flow: it stays where it was
+    EXPECT_GE(carried.report.regions, 1) << frame;
+  }
+  EXPECT_EQ(run(stage, still).marked, 0) << "older than keep_frames";
+
+  run(stage, pair_->prev);
+  run(stage, pair_->prev);
+  stage.reset();
+  EXPECT_EQ(run(stage, still).marked, 0) << "reset forgets the rectangles";
+
+  LiStage paper;  // keep_frames 0
+  run(paper, pair_->prev);
+  run(paper, pair_->prev);
+  const Out next = run(paper, still);
+  EXPECT_EQ(next.marked, 0);
+  EXPECT_EQ(next.report.values.count("kept_rectangles"), 0u);
+}
+
 TEST(LiOptions, ReadKeepsDefaultsAndRejectsBadValues) {
   cv::FileStorage fs("%YAML:1.0\nli:\n  alpha_epi: 2.5\n  min_cluster_points: 7\n  fill_occlusions: false\n",
                      cv::FileStorage::READ | cv::FileStorage::MEMORY);
@@ -169,6 +224,12 @@ TEST(LiOptions, ReadKeepsDefaultsAndRejectsBadValues) {
   cv::FileStorage order("%YAML:1.0\nli:\n  lambda_hinge: 20.0\n", cv::FileStorage::READ | cv::FileStorage::MEMORY);
   LiOptions c;
   EXPECT_THROW(c.read(order["li"]), InputError);  // eq. 11 needs lambda_occ > lambda_hinge
+  for (const char* text : {"li: {keep_frames: -1}", "li: {keep_covered_fraction: 0}",
+                           "li: {keep_covered_fraction: 1.5}", "li: {keep_min_hits: 0}"}) {
+    cv::FileStorage f(std::string("%YAML:1.0\n") + text + "\n", cv::FileStorage::READ | cv::FileStorage::MEMORY);
+    LiOptions d;
+    EXPECT_THROW(d.read(f["li"]), InputError) << text;
+  }
 }
 
 }  // namespace
