@@ -134,9 +134,10 @@ struct LiOptions {
   int min_hit_directions = 2;
 
   // Ours, 0 (the paper, which judges every frame on its own): a dynamic
-  // rectangle stays dynamic for up to this many frames after the last frame
-  // that found it, moved each frame by the median flow of the LK tracks that
-  // start inside it, until a rectangle found anew overlaps it. An object
+  // rectangle found in keep_min_hits frames stays dynamic for up to this many
+  // frames after the last frame that found it, moved each frame by the
+  // median flow of the LK tracks that start inside it, until new rectangles
+  // cover keep_covered_fraction of it (then they are what is kept). An object
   // travelling parallel to the camera's translation passes eq. 2-3 in some
   // frames and not in others; a moving object does not stop from one frame
   // to the next (the same reasoning as Dynamic.dm.keep_moving_frames_mono).

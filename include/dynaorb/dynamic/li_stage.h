@@ -15,7 +15,7 @@
 //      dynamic points (li_regions.h), ORed into ctx.dynamic: no ORB feature is
 //      extracted inside it (Sec. III-C);
 //   8. (ours, LiOptions::keep_frames > 0) the rectangles of the last frames
-//      that no new one overlaps, moved by the flow, ORed in too.
+//      that the new ones do not cover, moved by the flow, ORed in too.
 // It computes its own motion cues (the paper's FAST + LK), so it asks the
 // filter for none, and it reads no semantic input.
 //
