@@ -406,7 +406,9 @@ def _run(_core, opts: RunOptions, segmenter, semantic, tracker) -> dict:
             "rejected": None if result.rejected == "none" else result.rejected, "map": result.map,
             "map_dropped": result.map_dropped, "keypoints": result.keypoints,
             "tracked_points": result.tracked_points, "new_keyframe": result.new_keyframe,
-            "track_call_ms": track_call_ms[-1]})
+            "track_call_ms": track_call_ms[-1],
+            # Why a frame was not tracked (the initialisation's or tracking's own words).
+            "message": None if result.state == "OK" else (result.message or None)})
         per_frame_ms.append(dict(result.stage_ms))
         if dynamic_on and result.rejected == "none":
             dynamic_frames.append({
