@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cerrno>
 
+#include "dynaorb/io/errors.h"
+
 #if defined(__linux__)
 #include <sys/resource.h>
 #include <sys/syscall.h>
@@ -24,6 +26,10 @@ bool set_background_priority(int increment) {
 #else
   return false;
 #endif
+}
+
+void check_background_nice(int nice, const std::string& name) {
+  if (nice < 0 || nice > 19) throw InputError(name + " must be in [0, 19], got " + std::to_string(nice));
 }
 
 }  // namespace dynaorb

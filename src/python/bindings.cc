@@ -10,6 +10,7 @@
 #include <cstring>
 #include <opencv2/imgproc.hpp>
 
+#include "dynaorb/core/thread_priority.h"
 #include "dynaorb/dynamic/dynamic_filter.h"
 #include "dynaorb/features/orb_extractor.h"
 #include "dynaorb/io/dataset.h"
@@ -376,8 +377,7 @@ PYBIND11_MODULE(_core, m) {
              if (!tracker.is_none()) o.tracker = tracker.cast<tracking::TrackerOptions>();
              if (!background_nice.is_none()) {
                const int nice = background_nice.cast<int>();
-               if (nice < 0 || nice > 19)
-                 throw py::value_error("background_nice must be in [0, 19], got " + std::to_string(nice));
+               check_background_nice(nice, "background_nice");
                o.mapping.thread_nice = o.loop.thread_nice = nice;
              }
              o.synchronous_mapping = synchronous_mapping;

@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <sstream>
 
+#include "dynaorb/core/thread_priority.h"
 #include "dynaorb/io/errors.h"
 
 namespace dynaorb::node {
@@ -113,7 +114,7 @@ NodeConfig read_config(const ros::NodeHandle& pnh) {
   // Local mapping, loop closing and global BA run this much nicer than the
   // node (core/thread_priority.h), so tracking gets the CPU first.
   const int nice = param(pnh, "background_nice", cfg.system.mapping.thread_nice);
-  if (nice < 0 || nice > 19) throw InputError("~background_nice must be in [0, 19], got " + std::to_string(nice));
+  check_background_nice(nice, "~background_nice");
   cfg.system.mapping.thread_nice = cfg.system.loop.thread_nice = nice;
   // Lost this long (seconds of image stamps): the map is given up for a new
   // one, whose world is unrelated (TrackingStatus.map counts them); 0: never.

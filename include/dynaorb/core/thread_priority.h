@@ -6,6 +6,8 @@
 // the background threads hands the tracking thread its CPU first, while an
 // idle core still runs them at full speed.
 
+#include <string>
+
 namespace dynaorb {
 
 // Sets the calling thread's nice value to the process's (its main thread's)
@@ -15,5 +17,10 @@ namespace dynaorb {
 // <= 0: nothing, true. false: the platform has no per-thread nice, or the
 // call was refused; the thread then runs at the priority it had.
 bool set_background_priority(int increment);
+
+// The check of a background nice increment as the adapters take it (the ROS
+// node's ~background_nice, the Python System's background_nice): InputError
+// "<name> must be in [0, 19], got <nice>" unless it is in [0, 19].
+void check_background_nice(int nice, const std::string& name);
 
 }  // namespace dynaorb

@@ -5,6 +5,22 @@
 #include <thread>
 
 #include "dynaorb/core/thread_priority.h"
+#include "dynaorb/io/errors.h"
+
+// The adapters' check of the option (the node's ~background_nice, Python's
+// background_nice): [0, 19] passes, anything else names the option and value.
+TEST(ThreadPriority, BackgroundNiceOutsideZeroToNineteenIsRefused) {
+  EXPECT_NO_THROW(dynaorb::check_background_nice(0, "~background_nice"));
+  EXPECT_NO_THROW(dynaorb::check_background_nice(19, "~background_nice"));
+  for (const int bad : {-1, 20}) {
+    try {
+      dynaorb::check_background_nice(bad, "~background_nice");
+      ADD_FAILURE() << bad << " passed";
+    } catch (const dynaorb::InputError& e) {
+      EXPECT_EQ(std::string(e.what()), "~background_nice must be in [0, 19], got " + std::to_string(bad));
+    }
+  }
+}
 
 #if defined(__linux__)
 #include <dirent.h>
