@@ -4,6 +4,7 @@
 
 #include "dynaorb/io/errors.h"
 #include "file_node_options.h"
+#include "option_checks.h"
 
 namespace dynaorb::dynamic {
 
@@ -58,35 +59,55 @@ void LiOptions::read(const cv::FileNode& node) {
 }
 
 void LiOptions::validate() const {
-  auto fail = [](const std::string& what) { throw InputError("li option " + what); };
-  if (!(sgbm_scale > 0 && sgbm_scale <= 1)) fail("'sgbm_scale' must be in (0, 1]");
-  if (sgbm_num_disparities < 1) fail("'sgbm_num_disparities' must be >= 1");
-  if (sgbm_block_size < 1 || sgbm_block_size % 2 == 0) fail("'sgbm_block_size' must be odd and >= 1");
-  if (!(sgbm_p2_per_pixel > sgbm_p1_per_pixel && sgbm_p1_per_pixel >= 0))
-    fail("'sgbm_p2_per_pixel' must exceed 'sgbm_p1_per_pixel' >= 0");
-  if (n_points < 8) fail("'n_points' must be >= 8");
-  if (fast_cell_px < 8) fail("'fast_cell_px' must be >= 8");
-  if (fast_threshold < 1 || fast_min_threshold < 1 || border_px < 0)
-    fail("'fast_threshold' and 'fast_min_threshold' must be >= 1 and 'border_px' >= 0");
-  if (disparity_patch_radius < 0 || roi_margin_factor < 0)
-    fail("'disparity_patch_radius' and 'roi_margin_factor' must be >= 0");
-  if (lk_window < 3 || lk_levels < 0) fail("'lk_window' must be >= 3 and 'lk_levels' >= 0");
-  if (!(f_ransac_threshold_px > 0) || !(f_ransac_confidence > 0 && f_ransac_confidence < 1))
-    fail("'f_ransac_threshold_px' must be > 0 and 'f_ransac_confidence' in (0, 1)");
-  if (f_ransac_iterations < 1) fail("'f_ransac_iterations' must be >= 1");
-  if (min_points < 8) fail("'min_points' must be >= 8 (the 8-point algorithm)");
-  if (alpha_epi < 0 || beta_epi < 0) fail("'alpha_epi' and 'beta_epi' must be >= 0");
-  if (alpha_s < 0 || beta_s < 0 || t_disp < 0) fail("'alpha_s', 'beta_s', 't_disp' must be >= 0");
-  if (min_cluster_points < 1) fail("'min_cluster_points' must be >= 1");
-  if (slic_k < 1 || !(slic_nc > 0) || slic_max_iterations < 1)
-    fail("'slic_k', 'slic_nc' and 'slic_max_iterations' must be positive");
-  if (!(plane_inlier_px > 0) || plane_ransac_iterations < 1 || plane_min_pixels < 3 || plane_max_samples < 3)
-    fail("plane options must be positive ('plane_min_pixels', 'plane_max_samples' >= 3)");
-  if (!(lambda_occ > lambda_hinge && lambda_hinge > 0) || lambda_pen < 0)
-    fail("needs lambda_occ > lambda_hinge > 0 (eq. 11) and lambda_pen >= 0");
-  if (min_hit_directions < 0 || min_hit_directions > 4) fail("'min_hit_directions' must be in [0, 4]");
-  if (keep_frames < 0 || keep_min_hits < 1) fail("'keep_frames' must be >= 0 and 'keep_min_hits' >= 1");
-  if (!(keep_covered_fraction > 0 && keep_covered_fraction <= 1)) fail("'keep_covered_fraction' must be in (0, 1]");
+  const detail::OptionChecks c("Dynamic.li");
+  c.between("sgbm_scale", sgbm_scale, 0, 1, true);
+  c.at_least("sgbm_num_disparities", sgbm_num_disparities, 1);
+  c.at_least("sgbm_block_size", sgbm_block_size, 1);
+  if (sgbm_block_size % 2 == 0) c.fail("sgbm_block_size", sgbm_block_size, "odd");
+  c.non_negative("sgbm_p1_per_pixel", sgbm_p1_per_pixel, "no penalty for disparity steps of 1");
+  c.finite("sgbm_p2_per_pixel", sgbm_p2_per_pixel, "a finite number");
+  if (!(sgbm_p2_per_pixel > sgbm_p1_per_pixel))
+    c.fail("sgbm_p2_per_pixel", sgbm_p2_per_pixel, "> sgbm_p1_per_pixel (" + std::to_string(sgbm_p1_per_pixel) + ")");
+  c.at_least("sgbm_uniqueness_ratio", sgbm_uniqueness_ratio, 0);
+  c.at_least("sgbm_speckle_window", sgbm_speckle_window, 0);
+  c.at_least("sgbm_speckle_range", sgbm_speckle_range, 0);
+  c.at_least("n_points", n_points, 8);
+  c.at_least("fast_cell_px", fast_cell_px, 8);
+  c.at_least("fast_threshold", fast_threshold, 1);
+  c.at_least("fast_min_threshold", fast_min_threshold, 1);
+  c.at_least("border_px", border_px, 0);
+  c.at_least("lk_window", lk_window, 3);
+  c.at_least("lk_levels", lk_levels, 0);
+  c.non_negative("lk_forward_backward_max", lk_forward_backward_max, "no backward check");
+  c.positive("f_ransac_threshold_px", f_ransac_threshold_px);
+  c.between("f_ransac_confidence", f_ransac_confidence, 0, 1, false);
+  c.at_least("f_ransac_iterations", f_ransac_iterations, 1);
+  if (min_points < 8) c.fail("min_points", min_points, ">= 8 (the 8-point algorithm)");
+  c.non_negative("alpha_epi", alpha_epi, "no fixed part in eq. 3");
+  c.non_negative("beta_epi", beta_epi, "no disparity part in eq. 3");
+  c.at_least("disparity_patch_radius", disparity_patch_radius, 0);
+  c.non_negative("alpha_s", alpha_s, "no area term in eq. 4");
+  c.non_negative("beta_s", beta_s, "no disparity term in eq. 4");
+  c.non_negative("t_disp", t_disp, "every disparity difference splits");
+  c.at_least("min_cluster_points", min_cluster_points, 1);
+  c.non_negative("roi_margin_factor", roi_margin_factor, "the cluster's box alone");
+  c.at_least("slic_k", slic_k, 1);
+  c.positive("slic_nc", slic_nc);
+  c.at_least("slic_max_iterations", slic_max_iterations, 1);
+  c.positive("plane_inlier_px", plane_inlier_px);
+  c.at_least("plane_ransac_iterations", plane_ransac_iterations, 1);
+  c.at_least("plane_min_pixels", plane_min_pixels, 3);
+  c.at_least("plane_max_samples", plane_max_samples, 3);
+  c.positive("lambda_hinge", lambda_hinge);
+  c.finite("lambda_occ", lambda_occ, "a finite number");
+  if (!(lambda_occ > lambda_hinge))
+    c.fail("lambda_occ", lambda_occ, "> lambda_hinge (" + std::to_string(lambda_hinge) + "; eq. 11)");
+  c.non_negative("lambda_pen", lambda_pen, "no penalty");
+  c.at_least("min_hit_directions", min_hit_directions, 0);
+  if (min_hit_directions > 4) c.fail("min_hit_directions", min_hit_directions, "in [0, 4]");
+  c.at_least("keep_frames", keep_frames, 0);
+  c.between("keep_covered_fraction", keep_covered_fraction, 0, 1, true);
+  c.at_least("keep_min_hits", keep_min_hits, 1);
 }
 
 }  // namespace dynaorb::dynamic

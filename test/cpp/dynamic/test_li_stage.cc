@@ -225,10 +225,21 @@ TEST(LiOptions, ReadKeepsDefaultsAndRejectsBadValues) {
   LiOptions c;
   EXPECT_THROW(c.read(order["li"]), InputError);  // eq. 11 needs lambda_occ > lambda_hinge
   for (const char* text : {"li: {keep_frames: -1}", "li: {keep_covered_fraction: 0}",
-                           "li: {keep_covered_fraction: 1.5}", "li: {keep_min_hits: 0}"}) {
+                           "li: {keep_covered_fraction: 1.5}", "li: {keep_min_hits: 0}", "li: {alpha_epi: .nan}",
+                           "li: {beta_epi: .inf}", "li: {t_disp: .nan}", "li: {sgbm_block_size: 4}",
+                           "li: {lk_forward_backward_max: -1}", "li: {lambda_pen: .nan}"}) {
     cv::FileStorage f(std::string("%YAML:1.0\n") + text + "\n", cv::FileStorage::READ | cv::FileStorage::MEMORY);
     LiOptions d;
     EXPECT_THROW(d.read(f["li"]), InputError) << text;
+  }
+  // The message names the key, its value and the rule, as every stage's.
+  cv::FileStorage negative("%YAML:1.0\nli: {alpha_epi: -1}\n", cv::FileStorage::READ | cv::FileStorage::MEMORY);
+  try {
+    LiOptions().read(negative["li"]);
+    ADD_FAILURE() << "a negative alpha_epi passed";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "Dynamic.li option 'alpha_epi' is -1; it must be a finite number >= 0 (0: no fixed part in eq. 3)");
   }
 }
 
