@@ -139,7 +139,7 @@ DynamicFilterOptions from_storage(std::shared_ptr<cv::FileStorage> fs, const std
         throw InputError(source, 0, "'" + key + "' must be an integer >= 0");
       o.keyframes = static_cast<int>(n);
     } else if (key == kAllDynamicKey) {
-      if ((!n.isReal() && !n.isInt()) || static_cast<double>(n) <= 0 || static_cast<double>(n) > 1)
+      if ((!n.isReal() && !n.isInt()) || !(static_cast<double>(n) > 0 && static_cast<double>(n) <= 1))  // NaN too
         throw InputError(source, 0, "'" + key + "' must be a number in (0, 1]");
       o.all_dynamic_fraction = static_cast<double>(n);
     } else if (key == kOverlapKey) {

@@ -132,6 +132,10 @@ TEST(DynamicFilterOptions, LoadErrorsNameFileAndKey) {
   EXPECT_TRUE(contains(error_of("Dynamic.stages: []\nDynamic.motion_cues: {corners: 5}\n"),
                        "Dynamic.motion_cues.corners"));
   EXPECT_TRUE(contains(error_of("Dynamic.stages: [dm]\nDynamic.keyframes: -2\n"), "Dynamic.keyframes"));
+  for (const char* v : {"0", "1.5", ".nan"})
+    EXPECT_TRUE(contains(error_of(std::string("Dynamic.stages: [dm]\nDynamic.all_dynamic_fraction: ") + v + "\n"),
+                         "Dynamic.all_dynamic_fraction"))
+        << v;
   EXPECT_TRUE(contains(error_of("Dynamic.stages: [dm, dm]\n"), "twice"));
   EXPECT_TRUE(contains(error_of("Dynamic.stages: [dm, semantic]\n"), "first"));
   EXPECT_TRUE(contains(error_of("Dynamic.stages: semantic\n"), "list"));
