@@ -74,6 +74,28 @@ class SegmentationServerTest(unittest.TestCase):
         self.assertTrue(got, "no labels published")
         self.check_labels(got[0], stamp)
 
+    def test_runs_below_the_slam_nodes_priority(self):
+        # ~nice (default 10): every thread of the server, the network's included,
+        # 10 steps below the processes roslaunch started beside it (this test's).
+        import os
+        import xmlrpc.client
+
+        import rosgraph
+
+        rospy.wait_for_service("segment", timeout=60)   # the network is loaded, its threads started
+        uri = rosgraph.Master(rospy.get_name()).lookupNode("/segmentation_server")
+        code, _, pid = xmlrpc.client.ServerProxy(uri).getPid("/test_segmentation_server")
+        self.assertEqual(code, 1)
+        nices = []
+        for tid in os.listdir(f"/proc/{pid}/task"):
+            try:
+                with open(f"/proc/{pid}/task/{tid}/stat") as f:
+                    nices.append(int(f.read().rsplit(") ", 1)[1].split()[16]))
+            except FileNotFoundError:  # a connection's thread that ended meanwhile
+                pass
+        ours = os.getpriority(os.PRIO_PROCESS, 0)
+        self.assertTrue(nices and all(n == min(19, ours + 10) for n in nices), (ours, nices))
+
 
 if __name__ == "__main__":
     rostest.rosrun("dynaorb", "segmentation_server_test", SegmentationServerTest, sys.argv)

@@ -43,6 +43,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "older masks are propagated by optical flow; sync: every frame waits for its mask")
     r.add_argument("--segment-threads", type=int, default=1,
                    help="network threads (default 1: the tracking thread keeps a core)")
+    r.add_argument("--segment-nice", type=int, choices=range(0, 20), metavar="0-19", default=10,
+                   help="async: nice value of the network's thread above tracking's, so tracking gets the "
+                        "CPU first on a busy machine and the network what is left (default 10; 0: the same "
+                        "priority as tracking)")
     r.add_argument("--max-mask-age", type=int, default=30,
                    help="frames a propagated mask stays usable (default 30)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")

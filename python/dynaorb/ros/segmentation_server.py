@@ -7,7 +7,10 @@ Topic mode  subscribes image (sensor_msgs/Image) and publishes labels (mono8,
             image: a slow network drops frames here, never in the SLAM node,
             which propagates the last labels it got.
 Parameters  ~model (file or catalog name, default the default model),
-            ~threads (2), ~mode (service | topic | both, default both).
+            ~threads (2), ~mode (service | topic | both, default both),
+            ~nice (10, 0-19): the whole node runs this much below the
+            SLAM node's priority, so tracking gets a busy machine's cores
+            first and the network what is left.
             ~labels and ~movable_ids are set once the model is loaded.
 """
 from __future__ import annotations
@@ -19,6 +22,7 @@ from cv_bridge import CvBridge, CvBridgeError
 from sensor_msgs.msg import Image
 
 from dynaorb.segmentation import Segmenter, resolve_model
+from dynaorb.segmentation.priority import check_nice, lower_process_priority
 from dynaorb.srv import Segment, SegmentResponse
 
 
@@ -29,6 +33,10 @@ class SegmentationServer:
         mode = rospy.get_param("~mode", "both")
         if mode not in ("service", "topic", "both"):
             raise ValueError(f"~mode {mode!r} is not service, topic or both")
+        nice = check_nice(rospy.get_param("~nice", 10), "~nice")
+        refused = lower_process_priority(nice)  # before the network starts its threads
+        if refused:
+            rospy.logwarn("segmentation_server: keeps its priority (nice %d refused: %s)", nice, refused)
         self.segmenter = Segmenter(resolve_model(model), threads=threads)
         card = self.segmenter.card
         rospy.set_param("~labels", list(card.labels))
@@ -44,8 +52,8 @@ class SegmentationServer:
             self.pub = rospy.Publisher("labels", Image, queue_size=2)
             self.sub = rospy.Subscriber("image", Image, self.on_image, queue_size=1, buff_size=1 << 24)
             threading.Thread(target=self.worker, name="segmentation", daemon=True).start()
-        rospy.loginfo("segmentation_server: %s (%s, %d threads), mode %s; movable: %s", card.name,
-                      self.segmenter.path, threads, mode, ", ".join(card.movable_names))
+        rospy.loginfo("segmentation_server: %s (%s, %d threads, nice +%d), mode %s; movable: %s", card.name,
+                      self.segmenter.path, threads, nice, mode, ", ".join(card.movable_names))
 
     def labels_msg(self, msg: Image):
         """(label Image with msg's header, inference ms); ValueError on an image it cannot read."""

@@ -85,6 +85,9 @@ class RunOptions:
     segment: str | None = None
     segment_mode: str = "async"
     segment_threads: int = 1     # leaves the other core of a 2-core machine to tracking
+    # async: the network thread's nice above the tracking thread's (0-19): on
+    # a busy machine tracking gets the cores first, the network what is left.
+    segment_nice: int = 10
     max_mask_age: int = 30
     progress: bool = True
     # Map each keyframe before tracking the next frame: repeatable runs. False
@@ -209,7 +212,8 @@ def _semantic(opts: RunOptions):
 
     segmenter = Segmenter(resolve_model(opts.segment), threads=opts.segment_threads)
     return segmenter, SemanticMasks(segmenter, SemanticOptions(mode=opts.segment_mode,
-                                                                max_age_frames=opts.max_mask_age))
+                                                                max_age_frames=opts.max_mask_age,
+                                                                nice=opts.segment_nice))
 
 
 def _vocabulary(spec):

@@ -4,6 +4,9 @@ submit() never blocks: it replaces the frame waiting for the network (older
 waiting frames are dropped, the network never falls behind a queue). The
 worker keeps the newest result; latest() reads it. A failing network is
 logged once and counted; the SLAM side keeps going without masks.
+
+The worker thread runs `nice` steps below the thread that starts it
+(priority.py): on busy cores tracking goes first.
 """
 from __future__ import annotations
 
@@ -14,6 +17,7 @@ import time
 
 import numpy as np
 
+from dynaorb.segmentation.priority import check_nice, lower_thread_priority
 from dynaorb.segmentation.propagation import to_grey
 
 log = logging.getLogger(__name__)
@@ -30,8 +34,10 @@ class SegmentResult:
 
 
 class AsyncSegmenter:
-    def __init__(self, segmenter):
+    def __init__(self, segmenter, nice: int = 10):
         self.segmenter = segmenter
+        self.nice = check_nice(nice)
+        self.nice_error: str | None = None   # why the worker could not lower its priority
         self._cv = threading.Condition()
         self._pending: tuple[int, np.ndarray] | None = None
         self._latest: SegmentResult | None = None
@@ -66,6 +72,10 @@ class AsyncSegmenter:
         self._thread.join()
 
     def _run(self) -> None:
+        self.nice_error = lower_thread_priority(self.nice)
+        if self.nice_error:
+            log.warning("segmentation thread keeps tracking's priority (nice %d refused: %s)", self.nice,
+                        self.nice_error)
         while True:
             with self._cv:
                 self._cv.wait_for(lambda: self._pending is not None or self._stop)

@@ -6,18 +6,23 @@ newest frame; a frame without a fresh result gets the last labels propagated
 to it by optical flow, and its age (frames since the network saw the image
 the labels come from) is recorded. Labels older than max_age_frames are not
 used: the frame runs geometric-only, which is logged once and counted.
+The first frame waits for its own labels (at most first_wait_s): tracking
+builds its first map from that frame, and movers' points taken into it stay
+there.
 """
 from __future__ import annotations
 
 import collections
 import dataclasses
 import logging
+import math
 import statistics
 import time
 
 import numpy as np
 
 from dynaorb.segmentation.async_segmenter import AsyncSegmenter
+from dynaorb.segmentation.priority import check_nice
 from dynaorb.segmentation.propagation import FlowPropagator, to_grey
 
 log = logging.getLogger(__name__)
@@ -29,12 +34,22 @@ class SemanticOptions:
     max_age_frames: int = 30     # older labels are dropped (about 1 s at 30 Hz)
     propagate: bool = True       # warp old labels by optical flow (else use them as they are)
     flow_scale: float = 0.5      # resolution of the flow, relative to the image
+    # async: the network thread's nice above the caller's (0-19), so tracking
+    # gets the cores first on a busy machine (see async_segmenter).
+    nice: int = 10
+    # async: how long the first frame waits for its labels (s; 0: it does not
+    # wait). The map starts from it: without labels, the movers in view become
+    # map points (see the README's segmentation section for the measurement).
+    first_wait_s: float = 10.0
 
     def validate(self) -> "SemanticOptions":
         if self.mode not in ("async", "sync"):
             raise ValueError(f"segmentation mode {self.mode!r} is not 'async' or 'sync'")
         if self.max_age_frames < 0:
             raise ValueError(f"max_age_frames {self.max_age_frames} is negative")
+        check_nice(self.nice, "segmentation nice")
+        if not (self.first_wait_s >= 0) or math.isinf(self.first_wait_s):
+            raise ValueError(f"first_wait_s {self.first_wait_s} is not a finite number of seconds >= 0")
         return self
 
 
@@ -50,7 +65,8 @@ class SemanticMasks:
         self.segmenter = segmenter
         self.options = (options or SemanticOptions()).validate()
         self.propagator = FlowPropagator(self.options.flow_scale) if self.options.propagate else None
-        self.worker = AsyncSegmenter(segmenter) if self.options.mode == "async" else None
+        self.worker = (AsyncSegmenter(segmenter, nice=self.options.nice)
+                       if self.options.mode == "async" else None)
         self.counts = collections.Counter()
         self.ages: list[int] = []
         self.inference_ms: list[float] = []
@@ -60,6 +76,8 @@ class SemanticMasks:
         self._prev: tuple[np.ndarray, np.ndarray] | None = None   # labels, grey of the previous frame
         self._source_index = -1              # frame the previous labels come from
         self._stale_logged = False
+        self.first_wait_ms: float | None = None   # how long the first frame waited for its labels
+        self.first_wait_timed_out = False
 
     def labels_for(self, index: int, image: np.ndarray) -> FrameLabels:
         out = self._sync(image) if self.worker is None else self._async(index, image)
@@ -91,6 +109,8 @@ class SemanticMasks:
     def _async(self, index: int, image: np.ndarray) -> FrameLabels:
         self.worker.submit(index, image)
         grey = to_grey(image)
+        if self.first_wait_ms is None and self.options.first_wait_s > 0:
+            self._wait_first()
         result = self.worker.latest()
         if result is not None and result.index > self._seen_result:
             # A new network result: start from it (it may be a few frames old).
@@ -116,6 +136,16 @@ class SemanticMasks:
         self._prev = (labels, grey)
         return FrameLabels(labels, "fresh" if age == 0 else "propagated", age)
 
+    def _wait_first(self) -> None:
+        """Wait for the network to finish the first frame (a failing network finishes at once)."""
+        t = time.perf_counter()
+        done = self.worker.wait_idle(self.options.first_wait_s)
+        self.first_wait_ms = (time.perf_counter() - t) * 1e3
+        if not done:
+            self.first_wait_timed_out = True
+            log.warning("segmentation gave no labels for the first frame within %.1f s: tracking starts "
+                        "without them (movers in view may enter the first map)", self.options.first_wait_s)
+
     def close(self) -> None:
         if self.worker is not None:
             self.worker.close()
@@ -129,5 +159,7 @@ class SemanticMasks:
         if self.worker is not None:
             s.update(submitted=self.worker.submitted, segmented=self.worker.processed,
                      dropped_unseen=self.worker.dropped, failures=self.worker.failures,
-                     last_error=self.worker.last_error)
+                     last_error=self.worker.last_error, nice=self.worker.nice,
+                     nice_error=self.worker.nice_error, first_wait_ms=self.first_wait_ms,
+                     first_wait_timed_out=self.first_wait_timed_out)
         return s

@@ -1,0 +1,51 @@
+"""Running the network below tracking's priority.
+
+Linux niceness is per thread: a thread, or every thread of a process, can
+lower itself without privileges. The network is background work: when the
+cores are busy, tracking gets them first (as the core's background_nice does
+for local mapping and loop closing), and the frames the network skips get
+older labels propagated by optical flow.
+"""
+from __future__ import annotations
+
+import os
+import threading
+
+
+def check_nice(nice: int, name: str = "nice") -> int:
+    """`nice` if it is an int in [0, 19] (how far a thread may lower itself); ValueError otherwise."""
+    if isinstance(nice, bool) or not isinstance(nice, int) or not 0 <= nice <= 19:
+        raise ValueError(f"{name} {nice!r} is not an integer in [0, 19] (0: the network at tracking's priority)")
+    return nice
+
+
+def _lower(tid: int, nice: int) -> None:
+    os.setpriority(os.PRIO_PROCESS, tid, min(19, os.getpriority(os.PRIO_PROCESS, tid) + nice))
+
+
+def lower_thread_priority(nice: int) -> str | None:
+    """Lower the calling thread's priority by `nice`; the threads it starts later inherit it.
+    None when done, else why not (the thread then keeps its priority)."""
+    if nice == 0:
+        return None
+    try:
+        _lower(threading.get_native_id(), nice)
+    except (OSError, AttributeError) as exc:  # not Linux, or a sandbox that refuses it
+        return f"{type(exc).__name__}: {exc}"
+    return None
+
+
+def lower_process_priority(nice: int) -> str | None:
+    """Lower every thread of this process by `nice` (a node whose whole work is the network).
+    None when done, else why not."""
+    if nice == 0:
+        return None
+    try:
+        for tid in os.listdir("/proc/self/task"):
+            try:
+                _lower(int(tid), nice)
+            except ProcessLookupError:  # a thread that ended meanwhile
+                pass
+    except (OSError, ValueError) as exc:  # no /proc (not Linux), or refused
+        return f"{type(exc).__name__}: {exc}"
+    return None
