@@ -22,7 +22,7 @@ from cv_bridge import CvBridge, CvBridgeError
 from sensor_msgs.msg import Image
 
 from dynaorb.segmentation import Segmenter, resolve_model
-from dynaorb.segmentation.priority import check_nice, lower_process_priority
+from dynaorb.segmentation.priority import DEFAULT_NICE, check_nice, lower_process_priority
 from dynaorb.srv import Segment, SegmentResponse
 
 
@@ -33,7 +33,7 @@ class SegmentationServer:
         mode = rospy.get_param("~mode", "both")
         if mode not in ("service", "topic", "both"):
             raise ValueError(f"~mode {mode!r} is not service, topic or both")
-        nice = check_nice(rospy.get_param("~nice", 10), "~nice")
+        nice = check_nice(rospy.get_param("~nice", DEFAULT_NICE), "~nice")
         refused = lower_process_priority(nice)  # before the network starts its threads
         if refused:
             rospy.logwarn("segmentation_server: keeps its priority (nice %d refused: %s)", nice, refused)

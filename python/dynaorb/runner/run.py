@@ -30,6 +30,7 @@ from dynaorb.runner.frames import readable_frames
 from dynaorb.runner.masks import LabelFolder, MaskFolder
 from dynaorb.runner.pacing import Pacer
 from dynaorb.segmentation.labels import PASCAL_VOC_MOVABLE
+from dynaorb.segmentation.priority import DEFAULT_NICE
 
 log = logging.getLogger(__name__)
 
@@ -87,7 +88,7 @@ class RunOptions:
     segment_threads: int = 1     # leaves the other core of a 2-core machine to tracking
     # async: the network thread's nice above the tracking thread's (0-19): on
     # a busy machine tracking gets the cores first, the network what is left.
-    segment_nice: int = 10
+    segment_nice: int = DEFAULT_NICE
     max_mask_age: int = 30
     progress: bool = True
     # Map each keyframe before tracking the next frame: repeatable runs. False

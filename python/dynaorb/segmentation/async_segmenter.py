@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from dynaorb.segmentation.priority import check_nice, lower_thread_priority
+from dynaorb.segmentation.priority import DEFAULT_NICE, check_nice, lower_thread_priority
 from dynaorb.segmentation.propagation import to_grey
 
 log = logging.getLogger(__name__)
@@ -34,7 +34,7 @@ class SegmentResult:
 
 
 class AsyncSegmenter:
-    def __init__(self, segmenter, nice: int = 10):
+    def __init__(self, segmenter, nice: int = DEFAULT_NICE):
         self.segmenter = segmenter
         self.nice = check_nice(nice)
         self.nice_error: str | None = None   # why the worker could not lower its priority

@@ -22,7 +22,7 @@ import time
 import numpy as np
 
 from dynaorb.segmentation.async_segmenter import AsyncSegmenter
-from dynaorb.segmentation.priority import check_nice
+from dynaorb.segmentation.priority import DEFAULT_NICE, check_nice
 from dynaorb.segmentation.propagation import FlowPropagator, to_grey
 
 log = logging.getLogger(__name__)
@@ -36,7 +36,7 @@ class SemanticOptions:
     flow_scale: float = 0.5      # resolution of the flow, relative to the image
     # async: the network thread's nice above the caller's (0-19), so tracking
     # gets the cores first on a busy machine (see async_segmenter).
-    nice: int = 10
+    nice: int = DEFAULT_NICE
     # async: how long the first frame waits for its labels (s; 0: it does not
     # wait). The map starts from it: without labels, the movers in view become
     # map points (see the README's segmentation section for the measurement).

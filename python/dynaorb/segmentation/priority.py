@@ -11,6 +11,10 @@ from __future__ import annotations
 import os
 import threading
 
+# The network's nice above tracking's unless told otherwise (the core's
+# background_nice default for local mapping and loop closing is 10 too).
+DEFAULT_NICE = 10
+
 
 def check_nice(nice: int, name: str = "nice") -> int:
     """`nice` if it is an int in [0, 19] (how far a thread may lower itself); ValueError otherwise."""
