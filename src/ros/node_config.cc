@@ -2,6 +2,7 @@
 
 #include "dynaorb/dynamic/dynamic_filter.h"
 
+#include <cmath>
 #include <cstdlib>
 #include <sstream>
 
@@ -164,6 +165,10 @@ NodeConfig read_config(const ros::NodeHandle& pnh) {
   n.max_frames_waiting = param(pnh, "max_frames_waiting", n.max_frames_waiting);
   n.label_wait_timeout = param(pnh, "label_wait_timeout", n.label_wait_timeout);
   n.max_label_age = param(pnh, "max_label_age", n.max_label_age);
+  n.first_labels_timeout = param(pnh, "first_labels_timeout", n.first_labels_timeout);
+  if (!(n.first_labels_timeout >= 0.0) || !std::isfinite(n.first_labels_timeout))
+    throw InputError("~first_labels_timeout must be a finite number of seconds >= 0 (0: no wait)");
+  if (n.max_frames_waiting < 1) throw InputError("~max_frames_waiting must be >= 1");
   n.movable_ids_given = pnh.getParam("movable_ids", n.movable_ids);
   if (!n.movable_ids_given) n.movable_ids = kPascalVocMovable;
   n.movable_ids_from = param<std::string>(pnh, "movable_ids_from", n.movable_ids_from);
@@ -229,6 +234,9 @@ void apply_camera_info(Settings& s, Sensor sensor, const sensor_msgs::CameraInfo
 
 std::string describe(const NodeConfig& cfg) {
   const NodeOptions& n = cfg.node;
+  std::ostringstream wait;
+  if (n.first_labels_timeout > 0) wait << "; the first waited for at most " << n.first_labels_timeout << " s";
+  const std::string first_wait = wait.str();
   std::ostringstream out;
   out << "sensor " << to_string(n.sensor) << ", settings " << (cfg.settings.source.empty() ? "<params>" : cfg.settings.source)
       << ", vocabulary " << (cfg.vocabulary_path.empty() ? "none" : cfg.vocabulary_path) << ", dynamic "
@@ -238,7 +246,7 @@ std::string describe(const NodeConfig& cfg) {
       << (n.external_odometry ? " (odom -> base from TF)" : "") << "; " << (n.approximate_sync ? "approximate" : "exact")
       << " sync, queue " << n.queue_size << (n.rectify ? ", rectifying raw stereo" : "")
       << (n.use_camera_info ? ", intrinsics from camera_info" : "")
-      << (n.use_labels ? (n.wait_for_labels ? ", labels (waited for)" : ", labels (newest)") : ", no labels")
+      << (n.use_labels ? (n.wait_for_labels ? ", labels (waited for)" : ", labels (newest" + first_wait + ")") : ", no labels")
       << "; cloud " << (n.publish_cloud ? "max depth " + std::to_string(n.cloud.max_depth) + " m, stride " +
                                                std::to_string(n.cloud.stride)
                                          : "off");

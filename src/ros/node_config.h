@@ -44,6 +44,13 @@ struct NodeOptions {
   int max_frames_waiting = 30;    //   at most this many frames wait; older ones go without labels
   double label_wait_timeout = 1.0;  //   nor longer than this (wall-clock s): labels that never come
   double max_label_age = 0.5;     // s: newest labels older than this are not used (live)
+  // Live: while a labels publisher is connected and none of its labels have
+  // come yet, frames are held (at most max_frames_waiting) and wait for the
+  // first labels, at most this long (wall-clock s; 0: no wait). Tracking
+  // builds its first map from its first frame: without labels the movers in
+  // view would become map points. Held frames that get no labels within
+  // max_label_age of theirs are answered as skipped.
+  double first_labels_timeout = 10.0;
   // Label ids masked: ~movable_ids; without it, those the segmentation server
   // announces (~movable_ids_from, its ~movable_ids parameter) once labels
   // arrive, else PASCAL VOC's movable classes.

@@ -10,6 +10,8 @@
 #include <tf2/LinearMath/Quaternion.h>
 #include <tf2_eigen/tf2_eigen.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <sstream>
 
@@ -143,7 +145,8 @@ void SlamNode::subscribe() {
   }
   if (n.use_labels) {
     sub_labels_ = nh_.subscribe("semantic/labels", std::max(q, 10), &SlamNode::on_labels, this);
-    if (n.wait_for_labels) label_timer_ = nh_.createWallTimer(ros::WallDuration(0.1), &SlamNode::on_label_timer, this);
+    if (n.wait_for_labels || n.first_labels_timeout > 0)
+      label_timer_ = nh_.createWallTimer(ros::WallDuration(0.1), &SlamNode::on_label_timer, this);
   }
 }
 
@@ -213,10 +216,23 @@ void SlamNode::on_labels(const sensor_msgs::ImageConstPtr& msg) {
   }
   labels_[msg->header.stamp.toSec()] = labels;
   while (labels_.size() > 64) labels_.erase(labels_.begin());
-  if (cfg_.node.wait_for_labels) drain_waiting(false);
+  if (cfg_.node.wait_for_labels) {
+    drain_waiting(false);
+  } else if (!first_labels_done_) {
+    end_first_labels_wait(false);
+  }
 }
 
-void SlamNode::on_label_timer(const ros::WallTimerEvent&) { drain_waiting(true); }
+void SlamNode::on_label_timer(const ros::WallTimerEvent&) {
+  if (cfg_.node.wait_for_labels) {
+    drain_waiting(true);
+    return;
+  }
+  if (first_labels_done_ || waiting_.empty()) return;
+  // The publisher went away, or its labels take too long: track without them.
+  const double waited = (ros::WallTime::now() - first_wait_start_).toSec();
+  if (waited > cfg_.node.first_labels_timeout || sub_labels_.getNumPublishers() == 0) end_first_labels_wait(true);
+}
 
 void SlamNode::offer(FrameInput frame) {
   ++counters_.frames_in;
@@ -230,6 +246,86 @@ void SlamNode::offer(FrameInput frame) {
     drain_waiting(false);
     return;
   }
+  if (hold_for_first_labels()) {
+    if (waiting_.empty() && counters_.skipped_before_labels == 0) {
+      first_wait_start_ = ros::WallTime::now();
+      ROS_INFO("dynaorb_node: waiting for the first labels on %s (at most %.1f s)", sub_labels_.getTopic().c_str(),
+               n.first_labels_timeout);
+    }
+    waiting_.emplace_back(std::move(frame), ros::WallTime::now());
+    if (static_cast<int>(waiting_.size()) > n.max_frames_waiting) {
+      skip_before_labels(waiting_.front().first);
+      waiting_.pop_front();
+    }
+    return;
+  }
+  process_live(frame);
+}
+
+bool SlamNode::hold_for_first_labels() {
+  if (first_labels_done_) return false;
+  // Somebody publishes labels (a segmentation server whose network is
+  // loaded) but none came yet: the first map waits for them.
+  if (cfg_.node.first_labels_timeout > 0 && counters_.labels_in == 0 &&
+      (!waiting_.empty() || sub_labels_.getNumPublishers() > 0))
+    return true;
+  // No publisher, or labels already here: no wait, now or later (a server
+  // started after the first map changes nothing the wait could mend).
+  first_labels_done_ = true;
+  return false;
+}
+
+void SlamNode::end_first_labels_wait(bool timed_out) {
+  first_labels_done_ = true;
+  if (waiting_.empty()) return;
+  const double waited = (ros::WallTime::now() - first_wait_start_).toSec();
+  std::deque<std::pair<FrameInput, ros::WallTime>> held;
+  held.swap(waiting_);
+  if (timed_out) {
+    ++counters_.first_labels_timed_out;
+    ROS_WARN("dynaorb_node: no labels on %s after %.1f s (%s): tracking without them",
+             sub_labels_.getTopic().c_str(), waited,
+             sub_labels_.getNumPublishers() == 0 ? "its publisher went away" : "~first_labels_timeout");
+    for (const auto& h : held) process_live(h.first);
+    return;
+  }
+  // The first map starts from the first held frame with labels close enough
+  // in time; older frames are answered as skipped.
+  const long skipped_before = counters_.skipped_before_labels;
+  bool started = false;
+  for (const auto& h : held) {
+    const double stamp = h.first.header.stamp.toSec();
+    const bool usable = std::any_of(labels_.begin(), labels_.end(), [&](const auto& l) {
+      return std::abs(stamp - l.first) <= cfg_.node.max_label_age;
+    });
+    if (started || usable) {
+      started = true;
+      process_live(h.first);
+    } else {
+      skip_before_labels(h.first);
+    }
+  }
+  ROS_INFO("dynaorb_node: first labels after %.2f s; %zu frames held, %ld skipped", waited, held.size(),
+           counters_.skipped_before_labels - skipped_before);
+}
+
+void SlamNode::skip_before_labels(const FrameInput& frame) {
+  ++counters_.skipped_before_labels;
+  ROS_WARN_THROTTLE(5.0, "dynaorb_node: frame %.6f skipped: no labels for it before the first map (%ld so far)",
+                    frame.header.stamp.toSec(), counters_.skipped_before_labels.load());
+  try {
+    if (!ensure_system()) return;  // no camera_info yet: counted, not answered
+  } catch (const std::exception&) {
+    return;  // camera_info unusable: process() reports it with the next frame
+  }
+  camera_extrinsics(frame.header);
+  TrackResult r;  // the system saw no image: NO_IMAGES_YET
+  r.message = "skipped: the first map waits for the first labels (~first_labels_timeout)";
+  publish_status(frame, r, -1.0, "waiting_for_labels");
+}
+
+void SlamNode::process_live(const FrameInput& frame) {
+  const NodeOptions& n = cfg_.node;
   // Live: the labels nearest in time, if recent enough (a segmentation
   // server drops frames it cannot keep up with).
   const double stamp = frame.header.stamp.toSec();
@@ -574,13 +670,14 @@ void SlamNode::publish_keyframe_outputs(const FrameInput& f, const cv::Mat& excl
   if (pub_cloud_unfiltered_) publish(pub_cloud_unfiltered_, false);
 }
 
-void SlamNode::publish_status(const FrameInput& f, const TrackResult& r, double label_age) {
+void SlamNode::publish_status(const FrameInput& f, const TrackResult& r, double label_age,
+                              const std::string& rejected) {
   dynaorb::TrackingStatus s;
   s.header.stamp = f.header.stamp;
   s.header.frame_id = camera_frame_;
   s.state = to_string(r.state);
   s.method = r.method;
-  s.rejected = to_string(r.rejected);
+  s.rejected = rejected.empty() ? to_string(r.rejected) : rejected;
   s.message = r.message;
   s.keypoints = r.keypoints;
   s.tracked_points = r.tracked_points;
@@ -677,7 +774,9 @@ std::string SlamNode::stats_json() const {
       << ", \"waiting_for_camera_info\": " << c.waiting_for_camera_info.load()
       << ", \"labels_in\": " << c.labels_in.load() << ", \"labels_unreadable\": " << c.labels_unreadable.load()
       << ", \"labels_used\": " << c.labels_used.load() << ", \"labels_missing\": " << c.labels_missing.load()
-      << ", \"labels_stale\": " << c.labels_stale.load() << ", \"tf_failures\": " << c.tf_failures.load()
+      << ", \"labels_stale\": " << c.labels_stale.load()
+      << ", \"skipped_before_labels\": " << c.skipped_before_labels.load()
+      << ", \"first_labels_timed_out\": " << c.first_labels_timed_out.load() << ", \"tf_failures\": " << c.tf_failures.load()
       << ", \"clouds\": " << c.clouds.load() << ", \"cloud_failures\": " << c.cloud_failures.load()
       << ", \"inpainted_clouds\": " << c.inpainted_clouds.load()
       << ", \"unchecked_clouds\": " << c.unchecked_clouds.load();

@@ -59,6 +59,9 @@ struct FrameInput {
 struct NodeCounters {
   std::atomic<long> frames_in{0}, unreadable{0}, waiting_for_camera_info{0};
   std::atomic<long> labels_in{0}, labels_unreadable{0}, labels_used{0}, labels_missing{0}, labels_stale{0};
+  // Live: frames answered as skipped while waiting for the first labels
+  // (~first_labels_timeout), and waits that ended without labels.
+  std::atomic<long> skipped_before_labels{0}, first_labels_timed_out{0};
   std::atomic<long> tf_failures{0}, clouds{0}, cloud_failures{0}, inpainted_clouds{0};
   // Keyframe clouds that left out movable-class regions the filter could not check (no previous frame).
   std::atomic<long> unchecked_clouds{0};
@@ -85,6 +88,11 @@ class SlamNode {
   // Labels join: frames wait for theirs (~wait_for_labels) or take the newest.
   void offer(FrameInput frame);
   void drain_waiting(bool timed_out);
+  // Live: the newest labels within ~max_label_age, or none (counted).
+  void process_live(const FrameInput& frame);
+  bool hold_for_first_labels();
+  void end_first_labels_wait(bool timed_out);
+  void skip_before_labels(const FrameInput& frame);
   void process(const FrameInput& frame, const cv::Mat& labels, double label_age);
   bool ensure_system();
 
@@ -106,7 +114,9 @@ class SlamNode {
 
   void publish_pose(const FrameInput& frame, const Pose& T_wc, const std::string& method);
   void publish_keyframe_outputs(const FrameInput& frame, const cv::Mat& exclusion);
-  void publish_status(const FrameInput& frame, const TrackResult& r, double label_age);
+  // rejected: the node's own reason when it did not track the frame ("" the core's).
+  void publish_status(const FrameInput& frame, const TrackResult& r, double label_age,
+                      const std::string& rejected = "");
   bool camera_extrinsics(const std_msgs::Header& header);
 
   bool on_save_map(dynaorb::MapFile::Request& req, dynaorb::MapFile::Response& res);
@@ -128,7 +138,13 @@ class SlamNode {
   ros::Subscriber sub_mono_, sub_labels_, sub_info_left_, sub_info_right_;
   sensor_msgs::CameraInfoConstPtr info_left_, info_right_;
   std::map<double, cv::Mat> labels_;  // by stamp, newest kept
+  // Frames waiting for labels: each for its own (~wait_for_labels), or live
+  // all for the first labels (~first_labels_timeout).
   std::deque<std::pair<FrameInput, ros::WallTime>> waiting_;
+  // Live: the first labels came (or the wait for them ended); from then on
+  // each frame takes the newest labels.
+  bool first_labels_done_ = false;
+  ros::WallTime first_wait_start_;  // the first frame held for them
   // Frames (with their labels) that came before the first camera_info.
   struct Held {
     FrameInput frame;

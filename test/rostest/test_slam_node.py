@@ -10,13 +10,15 @@ those stamps and agrees with the Odometry; keyframe clouds in the camera
 frame at keyframe stamps within the maximum depth; the trajectory recorder's
 ATE against the bag's ground truth within the bound; an occupancy map from
 the octomap node; the labels seen as expected (segmentation server up, labels
-from the bag, or none). With a synthetic sequence: no occupied voxel of the
+from the bag, none, or a publisher that never publishes: the first map waits
+~first_labels_timeout for it, then the frames are tracked without labels). With a synthetic sequence: no occupied voxel of the
 map built from the dynamic-free clouds lies on a mover's path, while the map
 built from the unfiltered clouds has some (checked against synth.json).
 
 Parameters (private): kind (tum | kitti), source (dataset folder) or synth
 (render one: synth_movers, synth_frames), bag, ate_max, min_tracked_fraction,
-camera_frame, max_depth, labels (server | bag | none), play_labels (bool),
+camera_frame, max_depth, labels (server | bag | none | silent), labels_topic (silent),
+play_labels (bool),
 mover_check (bool), octomap_resolution.
 """
 import json
@@ -145,6 +147,11 @@ class SlamNodeTest(unittest.TestCase):
         # Only topics somebody reads, and only once each reader is connected
         # (--wait-for-subscribers): a fixed delay lost the first frame on a loaded machine.
         play = cls._subscribed_topics(play, settle=1.0)
+        if cls.labels_mode == "silent":  # a labels publisher the node is connected to, that never publishes
+            cls.silent = rospy.Publisher(p("labels_topic"), Image, queue_size=1)
+            deadline = time.time() + 30.0
+            while cls.silent.get_num_connections() == 0 and time.time() < deadline:
+                time.sleep(0.1)
         if cls.labels_mode == "server":  # its model loaded (it sets ~movable_ids then)
             deadline = time.time() + 90.0
             while not rospy.has_param("/segmentation_server/movable_ids") and time.time() < deadline:
@@ -293,12 +300,22 @@ class SlamNodeTest(unittest.TestCase):
         if self.labels_mode == "server":
             self.assertGreater(self.stats["labels_in"], 0, "segmentation_server published no labels")
             self.assertGreater(self.stats["labels_used"], 0)
+            # The first map waited for the server's first labels (~first_labels_timeout).
+            self.assertEqual(self.stats["first_labels_timed_out"], 0)
+            first = next(s for s in self.status if s.rejected == "none")
+            self.assertTrue(first.mask_used, "the first map was built from a frame without labels")
+            skipped = [s for s in self.status if s.rejected == "waiting_for_labels"]
+            self.assertEqual(len(skipped), self.stats["skipped_before_labels"])
+            self.assertTrue(all(k.header.stamp < first.header.stamp for k in skipped))
         elif self.labels_mode == "bag":
             self.assertEqual(self.stats["labels_used"], self.frames)
             self.assertTrue(all(s.mask_used for s in self.status))
         else:
             self.assertEqual(self.stats["labels_in"], 0)
             self.assertFalse(any(s.mask_used for s in self.status))
+            self.assertEqual(self.stats["skipped_before_labels"], 0)
+            # silent: the wait ended once, on ~first_labels_timeout; none: nobody to wait for.
+            self.assertEqual(self.stats["first_labels_timed_out"], int(self.labels_mode == "silent"))
 
     def test_inpainted_clouds(self):
         if not rospy.get_param("~inpainted_clouds", False):
@@ -313,7 +330,7 @@ class SlamNodeTest(unittest.TestCase):
         masked = np.array([f for _, _, f in self.masks])
         if self.labels_mode == "bag":  # the synthetic movers cover about a third of the image
             self.assertGreater(masked.mean(), 0.1)
-        elif self.labels_mode == "none":
+        elif self.labels_mode in ("none", "silent"):
             self.assertEqual(masked.max(), 0.0)
 
     def test_zz_services(self):
