@@ -168,7 +168,23 @@ def test_semantic_masks_propagate_between_network_results(moving):
     assert np.median([v for _, v in used]) >= 0.85, used
     summary = masks.summary()
     assert summary["frames"]["propagated"] == sources.count("propagated")
+    assert summary["propagate_skipped"] == 0 and summary["propagate_ms_median"] is not None  # movers: flow
     assert summary["age_max"] >= 1 and summary["segmented"] < len(seq)
+
+
+def test_background_only_labels_are_not_propagated(moving):
+    """A scene without objects: no flow is computed, and the frames get the same (empty) labels."""
+    seq = [(img, np.zeros_like(lab)) for img, lab in frames(moving)]
+    masks = SemanticMasks(Oracle(seq, delay_s=0.1), SemanticOptions(mode="async"))
+    try:
+        out = [masks.labels_for(i, img) for i, (img, _) in enumerate(seq)]
+    finally:
+        masks.close()
+    propagated = [o for o in out if o.source == "propagated"]
+    assert propagated and all(o.labels is not None and not o.labels.any() for o in out)
+    summary = masks.summary()
+    assert summary["propagate_skipped"] == len(propagated)
+    assert summary["propagate_ms_median"] is None   # the flow never ran
 
 
 class Blocked:

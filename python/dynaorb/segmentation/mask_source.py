@@ -19,6 +19,7 @@ import math
 import statistics
 import time
 
+import cv2
 import numpy as np
 
 from dynaorb.segmentation.async_segmenter import AsyncSegmenter
@@ -71,6 +72,7 @@ class SemanticMasks:
         self.ages: list[int] = []
         self.inference_ms: list[float] = []
         self.propagate_ms: list[float] = []
+        self.propagate_skipped = 0           # propagations of background-only labels, skipped
         self.sync_failures = 0
         self._seen_result = -1               # frame index of the last network result taken
         self._prev: tuple[np.ndarray, np.ndarray] | None = None   # labels, grey of the previous frame
@@ -100,6 +102,12 @@ class SemanticMasks:
 
     def _warp(self, labels, src_grey, dst_grey):
         if self.propagator is None or src_grey is dst_grey:
+            return labels
+        if cv2.countNonZero(labels) == 0:
+            # Only background: any flow carries it to background (pixels from
+            # outside the image get background too). No flow on scenes
+            # without objects (2 ms per frame at 752x480).
+            self.propagate_skipped += 1
             return labels
         t = time.perf_counter()
         out = self.propagator.warp(labels, src_grey, dst_grey)
@@ -155,6 +163,7 @@ class SemanticMasks:
         s = {"mode": self.options.mode, "frames": dict(self.counts),
              "age_median": med(self.ages), "age_max": max(self.ages) if self.ages else None,
              "inference_ms_median": med(self.inference_ms), "propagate_ms_median": med(self.propagate_ms),
+             "propagate_skipped": self.propagate_skipped,
              "failures": self.sync_failures}
         if self.worker is not None:
             s.update(submitted=self.worker.submitted, segmented=self.worker.processed,
