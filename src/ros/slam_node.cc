@@ -10,7 +10,6 @@
 #include <tf2/LinearMath/Quaternion.h>
 #include <tf2_eigen/tf2_eigen.h>
 
-#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <sstream>
@@ -247,7 +246,7 @@ void SlamNode::offer(FrameInput frame) {
     return;
   }
   if (hold_for_first_labels()) {
-    if (waiting_.empty() && counters_.skipped_before_labels == 0) {
+    if (first_wait_start_.isZero()) {
       first_wait_start_ = ros::WallTime::now();
       ROS_INFO("dynaorb_node: waiting for the first labels on %s (at most %.1f s)", sub_labels_.getTopic().c_str(),
                n.first_labels_timeout);
@@ -294,10 +293,8 @@ void SlamNode::end_first_labels_wait(bool timed_out) {
   const long skipped_before = counters_.skipped_before_labels;
   bool started = false;
   for (const auto& h : held) {
-    const double stamp = h.first.header.stamp.toSec();
-    const bool usable = std::any_of(labels_.begin(), labels_.end(), [&](const auto& l) {
-      return std::abs(stamp - l.first) <= cfg_.node.max_label_age;
-    });
+    double age = 0.0;
+    const bool usable = nearest_labels(h.first.header.stamp.toSec(), age) && std::abs(age) <= cfg_.node.max_label_age;
     if (started || usable) {
       started = true;
       process_live(h.first);
@@ -324,23 +321,26 @@ void SlamNode::skip_before_labels(const FrameInput& frame) {
   publish_status(frame, r, -1.0, "waiting_for_labels");
 }
 
-void SlamNode::process_live(const FrameInput& frame) {
-  const NodeOptions& n = cfg_.node;
-  // Live: the labels nearest in time, if recent enough (a segmentation
-  // server drops frames it cannot keep up with).
-  const double stamp = frame.header.stamp.toSec();
+const cv::Mat* SlamNode::nearest_labels(double stamp, double& age) const {
   const cv::Mat* best = nullptr;
-  double best_age = 0.0;
   for (const auto& [s, labels] : labels_) {
-    if (!best || std::abs(stamp - s) < std::abs(best_age)) {
+    if (!best || std::abs(stamp - s) < std::abs(age)) {
       best = &labels;
-      best_age = stamp - s;
+      age = stamp - s;
     }
   }
+  return best;
+}
+
+void SlamNode::process_live(const FrameInput& frame) {
+  // Live: the labels nearest in time, if recent enough (a segmentation
+  // server drops frames it cannot keep up with).
+  double best_age = 0.0;
+  const cv::Mat* best = nearest_labels(frame.header.stamp.toSec(), best_age);
   if (!best) {
     ++counters_.labels_missing;
     process(frame, cv::Mat(), -1.0);
-  } else if (std::abs(best_age) > n.max_label_age) {
+  } else if (std::abs(best_age) > cfg_.node.max_label_age) {
     ++counters_.labels_stale;
     process(frame, cv::Mat(), -1.0);
   } else {

@@ -90,6 +90,8 @@ class SlamNode {
   void drain_waiting(bool timed_out);
   // Live: the newest labels within ~max_label_age, or none (counted).
   void process_live(const FrameInput& frame);
+  // The labels nearest in time to `stamp` (nullptr: none yet); age = stamp - theirs.
+  const cv::Mat* nearest_labels(double stamp, double& age) const;
   bool hold_for_first_labels();
   void end_first_labels_wait(bool timed_out);
   void skip_before_labels(const FrameInput& frame);
