@@ -21,6 +21,7 @@ camera_frame, max_depth, labels (server | bag | none | silent), labels_topic (si
 play_labels (bool),
 mover_check (bool), octomap_resolution.
 """
+import fcntl
 import json
 import os
 import pathlib
@@ -46,7 +47,14 @@ from dynaorb.srv import ClearBBX, MapFile
 
 
 def prepare_bag(kind: str, source: str, bag: pathlib.Path, synth: bool, movers: int, frames: int) -> None:
-    """Writes the bag (and its sidecars) unless a complete one is cached."""
+    """Writes the bag (and its sidecars) unless a complete one is cached. Tests running in
+    parallel share a bag: the first writes it under a lock, the others wait and reuse it."""
+    with open(bag.with_name(bag.name + ".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        _prepare_bag_locked(kind, source, bag, synth, movers, frames)
+
+
+def _prepare_bag_locked(kind: str, source: str, bag: pathlib.Path, synth: bool, movers: int, frames: int) -> None:
     done = bag.with_name(bag.name + ".done")
     recipe = json.dumps({"kind": kind, "source": source, "synth": synth, "movers": movers, "frames": frames,
                          "version": 1})
