@@ -8,28 +8,27 @@
 
 #include "dynaorb/core/thread_priority.h"
 #include "dynaorb/io/errors.h"
+#include "ros_params.h"
 
 namespace dynaorb::node {
 
 namespace {
 
-// python/dynaorb/vocab/default.py: FILE_NAME (test/python/test_ros_node_sources.py keeps them equal).
+// python/dynaorb/vocab/default.py: FILE_NAME (test/python/test_ros_sources.py keeps them equal).
 constexpr const char* kDefaultVocabularyFile = "dynaorb_default_v1_k10_L6.bin";
 
 // PASCAL VOC's movable classes (python/dynaorb/segmentation/labels.py, DynaSLAM's and STDyn-SLAM's set).
 const std::vector<int> kPascalVocMovable = {1, 2, 3, 4, 6, 7, 8, 10, 12, 13, 14, 15, 17, 19};
 
 void override_number(const ros::NodeHandle& pnh, const std::string& key, double& value) {
-  double v;
-  if (pnh.getParam(key, v)) value = v;
+  read_param(pnh, key, value);
 }
 void override_number(const ros::NodeHandle& pnh, const std::string& key, int& value) {
-  int v;
-  if (pnh.getParam(key, v)) value = v;
+  read_param(pnh, key, value);
 }
 void override_optional(const ros::NodeHandle& pnh, const std::string& key, std::optional<double>& value) {
   double v;
-  if (pnh.getParam(key, v)) value = v;
+  if (read_param(pnh, key, v)) value = v;
 }
 
 // The YAML's keys as parameters: "Camera.fx" -> ~Camera/fx.
@@ -42,7 +41,7 @@ void override_settings(const ros::NodeHandle& pnh, Settings& s) {
   const char* dist_keys[] = {"Camera/k1", "Camera/k2", "Camera/p1", "Camera/p2", "Camera/k3"};
   for (int i = 0; i < 5; ++i) {
     double v;
-    if (!pnh.getParam(dist_keys[i], v)) continue;
+    if (!read_param(pnh, dist_keys[i], v)) continue;
     if (c.dist.cols <= i) {
       cv::Mat grown = cv::Mat::zeros(1, i + 1, CV_64F);
       c.dist.copyTo(grown.colRange(0, c.dist.cols));
@@ -54,7 +53,7 @@ void override_settings(const ros::NodeHandle& pnh, Settings& s) {
   override_number(pnh, "Camera/height", c.height);
   override_number(pnh, "Camera/fps", c.fps);
   int rgb;
-  if (pnh.getParam("Camera/RGB", rgb)) c.rgb = rgb != 0;
+  if (read_param(pnh, "Camera/RGB", rgb)) c.rgb = rgb != 0;
   override_optional(pnh, "Camera/bf", c.bf);
   override_optional(pnh, "ThDepth", c.th_depth);
   override_optional(pnh, "DepthMapFactor", c.depth_map_factor);
@@ -66,15 +65,12 @@ void override_settings(const ros::NodeHandle& pnh, Settings& s) {
   override_number(pnh, "ORBextractor/minThFAST", e.min_th_fast);
 }
 
-template <typename T>
-T param(const ros::NodeHandle& pnh, const std::string& name, const T& fallback) {
-  T v;
-  return pnh.getParam(name, v) ? v : fallback;
-}
-
 std::vector<double> triple(const ros::NodeHandle& pnh, const std::string& name, const std::vector<double>& fallback) {
   std::vector<double> v;
-  if (!pnh.getParam(name, v)) return fallback;
+  if (!pnh.getParam(name, v)) {
+    if (pnh.hasParam(name)) throw InputError("~" + name + " must hold 3 numbers");
+    return fallback;
+  }
   if (v.size() != 3) throw InputError("~" + name + " must hold 3 numbers");
   return v;
 }
@@ -98,33 +94,33 @@ std::string default_vocabulary_path() {
 NodeConfig read_config(const ros::NodeHandle& pnh) {
   NodeConfig cfg;
   NodeOptions& n = cfg.node;
-  n.sensor = parse_sensor(param<std::string>(pnh, "sensor", "rgbd"));
+  n.sensor = parse_sensor(param_or<std::string>(pnh, "sensor", "rgbd"));
 
-  const std::string settings_path = param<std::string>(pnh, "settings", "");
+  const std::string settings_path = param_or<std::string>(pnh, "settings", "");
   if (!settings_path.empty()) cfg.settings = Settings::load(settings_path);
   override_settings(pnh, cfg.settings);
-  n.use_camera_info = param(pnh, "use_camera_info", false);
+  n.use_camera_info = param_or(pnh, "use_camera_info", false);
   // With camera_info the intrinsics come later; the rest must be valid now.
   if (!n.use_camera_info) cfg.settings.validate(n.sensor);
 
   // System options.
-  cfg.system.synchronous_mapping = param(pnh, "synchronous_mapping", false);
-  cfg.system.loop_closing = param(pnh, "loop_closing", true);
-  cfg.system.localization_only = param(pnh, "localization_only", false);
-  cfg.system.mapping.ba_threads = param(pnh, "ba_threads", cfg.system.mapping.ba_threads);
+  cfg.system.synchronous_mapping = param_or(pnh, "synchronous_mapping", false);
+  cfg.system.loop_closing = param_or(pnh, "loop_closing", true);
+  cfg.system.localization_only = param_or(pnh, "localization_only", false);
+  cfg.system.mapping.ba_threads = param_or(pnh, "ba_threads", cfg.system.mapping.ba_threads);
   // Local mapping, loop closing and global BA run this much nicer than the
   // node (core/thread_priority.h), so tracking gets the CPU first.
-  const int nice = param(pnh, "background_nice", cfg.system.mapping.thread_nice);
+  const int nice = param_or(pnh, "background_nice", cfg.system.mapping.thread_nice);
   check_background_nice(nice, "~background_nice");
   cfg.system.mapping.thread_nice = cfg.system.loop.thread_nice = nice;
   // Lost this long (seconds of image stamps): the map is given up for a new
   // one, whose world is unrelated (TrackingStatus.map counts them); 0: never.
   cfg.system.tracker.new_map_after_lost_s =
-      param(pnh, "new_map_after_lost_s", cfg.system.tracker.new_map_after_lost_s);
+      param_or(pnh, "new_map_after_lost_s", cfg.system.tracker.new_map_after_lost_s);
   cfg.system.tracker.validate();  // refused at start-up, naming the parameter, not at the first image
   // The dynamic-object front end: a preset name (config/dynamic/<name>.yaml of
   // this package) or a preset file; "off": none.
-  cfg.dynamic = param<std::string>(pnh, "dynamic", "off");
+  cfg.dynamic = param_or<std::string>(pnh, "dynamic", "off");
   if (cfg.dynamic != "off") {
     const bool is_file = cfg.dynamic.find('/') != std::string::npos ||
                          (cfg.dynamic.size() > 5 && cfg.dynamic.compare(cfg.dynamic.size() - 5, 5, ".yaml") == 0);
@@ -132,68 +128,74 @@ NodeConfig read_config(const ros::NodeHandle& pnh) {
     cfg.system.dynamic = dynamic::DynamicFilterOptions::load(path);  // InputError naming the file and key
     cfg.system.dynamic.validate(n.sensor);
   }
-  std::string vocabulary = param<std::string>(pnh, "vocabulary", "default");
+  std::string vocabulary = param_or<std::string>(pnh, "vocabulary", "default");
   if (vocabulary == "none") vocabulary.clear();
   cfg.vocabulary_path = vocabulary == "default" ? default_vocabulary_path() : vocabulary;
 
   // Frames and TF.
-  n.map_frame = param<std::string>(pnh, "map_frame", n.map_frame);
-  n.odom_frame = param<std::string>(pnh, "odom_frame", n.odom_frame);
-  n.base_frame = param<std::string>(pnh, "base_frame", n.base_frame);
-  n.camera_frame = param<std::string>(pnh, "camera_frame", n.camera_frame);
-  n.publish_tf = param(pnh, "publish_tf", n.publish_tf);
-  n.external_odometry = param(pnh, "external_odometry", n.external_odometry);
-  n.publish_camera_tf = param(pnh, "publish_camera_tf", n.publish_camera_tf);
+  n.map_frame = param_or<std::string>(pnh, "map_frame", n.map_frame);
+  n.odom_frame = param_or<std::string>(pnh, "odom_frame", n.odom_frame);
+  n.base_frame = param_or<std::string>(pnh, "base_frame", n.base_frame);
+  n.camera_frame = param_or<std::string>(pnh, "camera_frame", n.camera_frame);
+  n.publish_tf = param_or(pnh, "publish_tf", n.publish_tf);
+  n.external_odometry = param_or(pnh, "external_odometry", n.external_odometry);
+  n.publish_camera_tf = param_or(pnh, "publish_camera_tf", n.publish_camera_tf);
   n.camera_xyz = triple(pnh, "camera_xyz", n.camera_xyz);
   n.camera_rpy = triple(pnh, "camera_rpy", n.camera_rpy);
-  n.tf_timeout = param(pnh, "tf_timeout", n.tf_timeout);
+  n.tf_timeout = param_or(pnh, "tf_timeout", n.tf_timeout);
   if (n.map_frame.empty() || n.odom_frame.empty() || n.base_frame.empty())
     throw InputError("~map_frame, ~odom_frame and ~base_frame must not be empty");
 
   // Inputs.
-  n.approximate_sync = param(pnh, "approximate_sync", n.approximate_sync);
-  n.sync_max_interval = param(pnh, "sync_max_interval", n.sync_max_interval);
-  n.queue_size = param(pnh, "queue_size", n.queue_size);
+  n.approximate_sync = param_or(pnh, "approximate_sync", n.approximate_sync);
+  n.sync_max_interval = param_or(pnh, "sync_max_interval", n.sync_max_interval);
+  n.queue_size = param_or(pnh, "queue_size", n.queue_size);
   if (n.queue_size < 1) throw InputError("~queue_size must be >= 1");
-  n.rectify = param(pnh, "rectify", n.sensor == Sensor::kStereo && cfg.settings.rectification.enabled());
+  n.rectify = param_or(pnh, "rectify", n.sensor == Sensor::kStereo && cfg.settings.rectification.enabled());
   if (n.rectify && (n.sensor != Sensor::kStereo || !cfg.settings.rectification.enabled()))
     throw InputError("~rectify needs a stereo sensor and LEFT./RIGHT. blocks in the settings");
   if (n.rectify && n.use_camera_info)
     throw InputError("~use_camera_info is for rectified images: with ~rectify the YAML's LEFT./RIGHT. blocks hold the calibration");
-  n.use_labels = param(pnh, "use_labels", n.use_labels);
-  n.wait_for_labels = param(pnh, "wait_for_labels", n.wait_for_labels);
-  n.max_frames_waiting = param(pnh, "max_frames_waiting", n.max_frames_waiting);
-  n.label_wait_timeout = param(pnh, "label_wait_timeout", n.label_wait_timeout);
-  n.max_label_age = param(pnh, "max_label_age", n.max_label_age);
-  n.first_labels_timeout = param(pnh, "first_labels_timeout", n.first_labels_timeout);
+  n.use_labels = param_or(pnh, "use_labels", n.use_labels);
+  n.wait_for_labels = param_or(pnh, "wait_for_labels", n.wait_for_labels);
+  n.max_frames_waiting = param_or(pnh, "max_frames_waiting", n.max_frames_waiting);
+  n.label_wait_timeout = param_or(pnh, "label_wait_timeout", n.label_wait_timeout);
+  if (!(n.label_wait_timeout >= 0.0) || !std::isfinite(n.label_wait_timeout))
+    throw InputError("~label_wait_timeout must be a finite number of seconds >= 0");
+  n.max_label_age = param_or(pnh, "max_label_age", n.max_label_age);
+  if (!(n.max_label_age >= 0.0) || !std::isfinite(n.max_label_age))
+    throw InputError("~max_label_age must be a finite number of seconds >= 0");
+  n.first_labels_timeout = param_or(pnh, "first_labels_timeout", n.first_labels_timeout);
   if (!(n.first_labels_timeout >= 0.0) || !std::isfinite(n.first_labels_timeout))
     throw InputError("~first_labels_timeout must be a finite number of seconds >= 0 (0: no wait)");
+  n.expect_labels = param_or(pnh, "expect_labels", n.expect_labels);
   if (n.max_frames_waiting < 1) throw InputError("~max_frames_waiting must be >= 1");
   n.movable_ids_given = pnh.getParam("movable_ids", n.movable_ids);
+  if (!n.movable_ids_given && pnh.hasParam("movable_ids")) throw InputError("~movable_ids must be a list of integers");
   if (!n.movable_ids_given) n.movable_ids = kPascalVocMovable;
-  n.movable_ids_from = param<std::string>(pnh, "movable_ids_from", n.movable_ids_from);
+  n.movable_ids_from = param_or<std::string>(pnh, "movable_ids_from", n.movable_ids_from);
 
   // Dense cloud.
-  n.publish_cloud = param(pnh, "publish_cloud", n.publish_cloud);
-  n.publish_unfiltered_cloud = param(pnh, "publish_unfiltered_cloud", n.publish_unfiltered_cloud);
-  n.inpaint = param(pnh, "cloud/inpaint", n.inpaint);
-  n.cloud.max_depth = param(pnh, "cloud/max_depth", n.cloud.max_depth);
-  n.cloud.min_depth = param(pnh, "cloud/min_depth", n.cloud.min_depth);
-  n.cloud.stride = param(pnh, "cloud/stride", n.cloud.stride);
+  n.publish_cloud = param_or(pnh, "publish_cloud", n.publish_cloud);
+  n.publish_unfiltered_cloud = param_or(pnh, "publish_unfiltered_cloud", n.publish_unfiltered_cloud);
+  n.inpaint = param_or(pnh, "cloud/inpaint", n.inpaint);
+  n.cloud.max_depth = param_or(pnh, "cloud/max_depth", n.cloud.max_depth);
+  n.cloud.min_depth = param_or(pnh, "cloud/min_depth", n.cloud.min_depth);
+  n.cloud.stride = param_or(pnh, "cloud/stride", n.cloud.stride);
   if (!(n.cloud.max_depth > n.cloud.min_depth) || n.cloud.stride < 1)
     throw InputError("~cloud/max_depth must exceed ~cloud/min_depth and ~cloud/stride be >= 1");
-  n.sgbm.num_disparities = param(pnh, "sgbm/num_disparities", n.sgbm.num_disparities);
-  n.sgbm.block_size = param(pnh, "sgbm/block_size", n.sgbm.block_size);
-  n.sgbm.uniqueness_ratio = param(pnh, "sgbm/uniqueness_ratio", n.sgbm.uniqueness_ratio);
-  n.sgbm.speckle_window = param(pnh, "sgbm/speckle_window", n.sgbm.speckle_window);
-  n.sgbm.speckle_range = param(pnh, "sgbm/speckle_range", n.sgbm.speckle_range);
+  n.sgbm.num_disparities = param_or(pnh, "sgbm/num_disparities", n.sgbm.num_disparities);
+  n.sgbm.block_size = param_or(pnh, "sgbm/block_size", n.sgbm.block_size);
+  n.sgbm.uniqueness_ratio = param_or(pnh, "sgbm/uniqueness_ratio", n.sgbm.uniqueness_ratio);
+  n.sgbm.speckle_window = param_or(pnh, "sgbm/speckle_window", n.sgbm.speckle_window);
+  n.sgbm.speckle_range = param_or(pnh, "sgbm/speckle_range", n.sgbm.speckle_range);
   try {
     n.sgbm.validate();
   } catch (const std::invalid_argument& e) {
     throw InputError(std::string("~sgbm/*: ") + e.what());
   }
   cfg.system.dynamic.inpainting.stereo = n.sgbm;  // the inpainted stereo clouds use the same depth
-  n.drop_unchecked_movable = param(pnh, "cloud/drop_unchecked_movable", n.drop_unchecked_movable);
+  n.drop_unchecked_movable = param_or(pnh, "cloud/drop_unchecked_movable", n.drop_unchecked_movable);
   return cfg;
 }
 
@@ -235,7 +237,9 @@ void apply_camera_info(Settings& s, Sensor sensor, const sensor_msgs::CameraInfo
 std::string describe(const NodeConfig& cfg) {
   const NodeOptions& n = cfg.node;
   std::ostringstream wait;
-  if (n.first_labels_timeout > 0) wait << "; the first waited for at most " << n.first_labels_timeout << " s";
+  if (n.first_labels_timeout > 0)
+    wait << "; the first waited for at most " << n.first_labels_timeout << " s"
+         << (n.expect_labels ? ", publisher or not (~expect_labels)" : "");
   const std::string first_wait = wait.str();
   std::ostringstream out;
   out << "sensor " << to_string(n.sensor) << ", settings " << (cfg.settings.source.empty() ? "<params>" : cfg.settings.source)

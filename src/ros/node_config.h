@@ -51,6 +51,12 @@ struct NodeOptions {
   // view would become map points. Held frames that get no labels within
   // max_label_age of theirs are answered as skipped.
   double first_labels_timeout = 10.0;
+  // Live: a labels publisher is expected (a segmentation server launched
+  // with the node): the first frames wait for the first labels, as above,
+  // even before any publisher has connected (the server's process may still
+  // be starting); a publisher that connects and then goes away still ends
+  // the wait. false: with no publisher connected nothing waits.
+  bool expect_labels = false;
   // Label ids masked: ~movable_ids; without it, those the segmentation server
   // announces (~movable_ids_from, its ~movable_ids parameter) once labels
   // arrive, else PASCAL VOC's movable classes.

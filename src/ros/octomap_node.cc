@@ -11,17 +11,9 @@
 #include <map>
 
 #include "ros_conversions.h"
+#include "ros_params.h"
 
 namespace dynaorb::node {
-
-namespace {
-
-double param_or(const ros::NodeHandle& pnh, const std::string& name, double fallback) {
-  double v;
-  return pnh.getParam(name, v) ? v : fallback;
-}
-
-}  // namespace
 
 OctomapNode::OctomapNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh_(pnh) {
   constexpr double inf = std::numeric_limits<double>::infinity();
@@ -37,9 +29,9 @@ OctomapNode::OctomapNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh
   map_ = std::make_unique<occupancy::OccupancyMap>(o);  // throws InputError on bad values
   occupancy_min_z_ = param_or(pnh_, "occupancy_min_z", -inf);
   occupancy_max_z_ = param_or(pnh_, "occupancy_max_z", inf);
-  frame_id_ = pnh_.param<std::string>("frame_id", "map");
-  projected_map_ = pnh_.param("projected_map", true);
-  const bool latch = pnh_.param("latch", true);
+  frame_id_ = param_or<std::string>(pnh_, "frame_id", "map");
+  projected_map_ = param_or(pnh_, "projected_map", true);
+  const bool latch = param_or(pnh_, "latch", true);
 
   pub_centres_ = nh_.advertise<sensor_msgs::PointCloud2>("octomap_point_cloud_centers", 1, latch);
   pub_markers_ = nh_.advertise<visualization_msgs::MarkerArray>("occupied_cells_vis_array", 1, latch);
@@ -50,7 +42,7 @@ OctomapNode::OctomapNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh
 
   tf_listener_ = std::make_unique<tf2_ros::TransformListener>(tf_buffer_);
   // octomap_server queues 5 clouds; a node that maps every keyframe of a bag needs more.
-  const int queue = std::max(1, pnh_.param("queue_size", 5));
+  const int queue = std::max(1, param_or(pnh_, "queue_size", 5));
   sub_ = std::make_unique<message_filters::Subscriber<sensor_msgs::PointCloud2>>(nh_, "cloud_in", queue);
   filter_ = std::make_unique<tf2_ros::MessageFilter<sensor_msgs::PointCloud2>>(*sub_, tf_buffer_, frame_id_, queue, nh_);
   filter_->registerCallback(&OctomapNode::on_cloud, this);

@@ -227,10 +227,15 @@ void SlamNode::on_label_timer(const ros::WallTimerEvent&) {
     drain_waiting(true);
     return;
   }
-  if (first_labels_done_ || waiting_.empty()) return;
+  if (first_labels_done_) return;
+  const bool connected = sub_labels_.getNumPublishers() > 0;
+  if (connected) labels_publisher_seen_ = true;
+  if (waiting_.empty()) return;
   // The publisher went away, or its labels take too long: track without them.
+  // (~expect_labels: no publisher yet is not one that went away.)
   const double waited = (ros::WallTime::now() - first_wait_start_).toSec();
-  if (waited > cfg_.node.first_labels_timeout || sub_labels_.getNumPublishers() == 0) end_first_labels_wait(true);
+  const bool gone = !connected && (labels_publisher_seen_ || !cfg_.node.expect_labels);
+  if (waited > cfg_.node.first_labels_timeout || gone) end_first_labels_wait(true);
 }
 
 void SlamNode::offer(FrameInput frame) {
@@ -263,10 +268,13 @@ void SlamNode::offer(FrameInput frame) {
 
 bool SlamNode::hold_for_first_labels() {
   if (first_labels_done_) return false;
-  // Somebody publishes labels (a segmentation server whose network is
-  // loaded) but none came yet: the first map waits for them.
+  // Somebody publishes labels (a segmentation server, maybe still loading
+  // its network), or is expected to (~expect_labels), but none came yet:
+  // the first map waits for them.
+  const bool connected = sub_labels_.getNumPublishers() > 0;
+  if (connected) labels_publisher_seen_ = true;
   if (cfg_.node.first_labels_timeout > 0 && counters_.labels_in == 0 &&
-      (!waiting_.empty() || sub_labels_.getNumPublishers() > 0))
+      (!waiting_.empty() || cfg_.node.expect_labels || connected))
     return true;
   // No publisher, or labels already here: no wait, now or later (a server
   // started after the first map changes nothing the wait could mend).
@@ -284,7 +292,9 @@ void SlamNode::end_first_labels_wait(bool timed_out) {
     ++counters_.first_labels_timed_out;
     ROS_WARN("dynaorb_node: no labels on %s after %.1f s (%s): tracking without them",
              sub_labels_.getTopic().c_str(), waited,
-             sub_labels_.getNumPublishers() == 0 ? "its publisher went away" : "~first_labels_timeout");
+             sub_labels_.getNumPublishers() > 0 ? "~first_labels_timeout"
+             : labels_publisher_seen_          ? "its publisher went away"
+                                               : "no publisher appeared within ~first_labels_timeout");
     for (const auto& h : held) process_live(h.first);
     return;
   }

@@ -146,6 +146,7 @@ class SlamNode {
   // Live: the first labels came (or the wait for them ended); from then on
   // each frame takes the newest labels.
   bool first_labels_done_ = false;
+  bool labels_publisher_seen_ = false;  // a labels publisher has been connected
   ros::WallTime first_wait_start_;  // the first frame held for them
   // Frames (with their labels) that came before the first camera_info.
   struct Held {

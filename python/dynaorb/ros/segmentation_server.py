@@ -11,7 +11,8 @@ Parameters  ~model (file or catalog name, default the default model),
             ~nice (10, 0-19): the whole node runs this much below the
             SLAM node's priority, so tracking gets a busy machine's cores
             first and the network what is left.
-            ~labels and ~movable_ids are set once the model is loaded.
+            ~labels and ~movable_ids are set once the model is loaded; the
+            labels topic is advertised before (see __init__).
 """
 from __future__ import annotations
 
@@ -37,6 +38,12 @@ class SegmentationServer:
         refused = lower_process_priority(nice)  # before the network starts its threads
         if refused:
             rospy.logwarn("segmentation_server: keeps its priority (nice %d refused: %s)", nice, refused)
+        if mode in ("topic", "both"):
+            # Advertised before the network loads (which takes a while): a
+            # SLAM node that sees a labels publisher holds its first frames
+            # for the first labels (dynaorb_node ~first_labels_timeout)
+            # instead of building its first map without them meanwhile.
+            self.pub = rospy.Publisher("labels", Image, queue_size=2)
         self.segmenter = Segmenter(resolve_model(model), threads=threads)
         card = self.segmenter.card
         rospy.set_param("~labels", list(card.labels))
@@ -49,7 +56,6 @@ class SegmentationServer:
         if mode in ("service", "both"):
             self.srv = rospy.Service("segment", Segment, self.on_segment)
         if mode in ("topic", "both"):
-            self.pub = rospy.Publisher("labels", Image, queue_size=2)
             self.sub = rospy.Subscriber("image", Image, self.on_image, queue_size=1, buff_size=1 << 24)
             threading.Thread(target=self.worker, name="segmentation", daemon=True).start()
         rospy.loginfo("segmentation_server: %s (%s, %d threads, nice +%d), mode %s; movable: %s", card.name,

@@ -1,0 +1,66 @@
+#!/usr/bin/env python3
+"""rostest: dynaorb_node refuses bad parameters at start-up, naming the parameter,
+before it loads a vocabulary or subscribes to anything."""
+import itertools
+import subprocess
+import sys
+import unittest
+
+import roslib.packages
+import rospy
+import rostest
+
+# parameter -> (bad value, what the error says)
+REFUSED = {
+    "max_label_age": ("-0.5", "~max_label_age must be a finite number of seconds >= 0"),
+    "label_wait_timeout": ("-1.0", "~label_wait_timeout must be a finite number of seconds >= 0"),
+    "first_labels_timeout": ("-2.0", "~first_labels_timeout must be a finite number of seconds >= 0"),
+    "max_frames_waiting": ("0", "~max_frames_waiting must be >= 1"),
+    "queue_size": ("0", "~queue_size must be >= 1"),
+}
+
+
+class SlamNodeParamsTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node("test_slam_node_params")
+        cls.settings = rospy.get_param("~settings")
+        found = roslib.packages.find_node("dynaorb", "dynaorb_node")  # as roslaunch finds it
+        assert found, "dynaorb_node not built"
+        cls.node = found[0]
+        cls.runs = itertools.count()
+
+    def run_node(self, name: str, extra: list[str], params: dict | None = None) -> subprocess.CompletedProcess:
+        # `_key:=value` sets ~key on the master, where it outlives the node:
+        # one name per run, so no run sees another's values.
+        name = f"{name}_{next(self.runs)}"
+        for key, value in (params or {}).items():
+            rospy.set_param(f"/{name}/{key}", value)
+        cmd = [self.node, f"__name:={name}", "_sensor:=stereo",
+               f"_settings:={self.settings}", "_vocabulary:=none", *extra]
+        return subprocess.run(cmd, capture_output=True, text=True, timeout=40)
+
+    def test_bad_values_refused_naming_the_parameter(self):
+        for key, (value, message) in REFUSED.items():
+            with self.subTest(key=key):
+                done = self.run_node(f"refuse_{key}", [f"_{key}:={value}"])
+                self.assertEqual(done.returncode, 1, (key, done.stdout[-500:], done.stderr[-500:]))
+                self.assertIn(message, done.stdout + done.stderr)
+
+    def test_wrong_types_refused_not_replaced_by_defaults(self):
+        done = self.run_node("refuse_nan", [], {"max_label_age": float("nan")})
+        self.assertEqual(done.returncode, 1, done.stderr[-500:])
+        self.assertIn("~max_label_age must be a finite number", done.stdout + done.stderr)
+        for arg, message in (("_max_label_age:=soon", "~max_label_age must be a number"),
+                             ("_queue_size:=ten", "~queue_size must be an integer"),
+                             ("_use_labels:=1", "~use_labels must be true or false"),
+                             ("_movable_ids:=person", "~movable_ids must be a list of integers"),
+                             ("_Camera/fx:=wide", "~Camera/fx must be a number")):
+            with self.subTest(arg=arg):
+                done = self.run_node("refuse_type", [arg])
+                self.assertEqual(done.returncode, 1, (arg, done.stdout[-500:], done.stderr[-500:]))
+                self.assertIn(message, done.stdout + done.stderr)
+
+
+if __name__ == "__main__":
+    rostest.rosrun("dynaorb", "slam_node_params", SlamNodeParamsTest, sys.argv)
