@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""rostest: dynaorb_node refuses bad parameters at start-up, naming the parameter,
-before it loads a vocabulary or subscribes to anything."""
+"""rostest: dynaorb_node (and dynaorb_octomap) refuse bad parameters at start-up,
+naming the parameter, before they load a vocabulary or subscribe to anything."""
 import itertools
 import subprocess
 import sys
@@ -28,17 +28,25 @@ class SlamNodeParamsTest(unittest.TestCase):
         found = roslib.packages.find_node("dynaorb", "dynaorb_node")  # as roslaunch finds it
         assert found, "dynaorb_node not built"
         cls.node = found[0]
+        cls.octomap = roslib.packages.find_node("dynaorb", "dynaorb_octomap")[0]
         cls.runs = itertools.count()
 
-    def run_node(self, name: str, extra: list[str], params: dict | None = None) -> subprocess.CompletedProcess:
+    def run_node(self, name: str, extra: list[str], params: dict | None = None,
+                 octomap: bool = False) -> subprocess.CompletedProcess:
         # `_key:=value` sets ~key on the master, where it outlives the node:
         # one name per run, so no run sees another's values.
         name = f"{name}_{next(self.runs)}"
         for key, value in (params or {}).items():
             rospy.set_param(f"/{name}/{key}", value)
-        cmd = [self.node, f"__name:={name}", "_sensor:=stereo",
-               f"_settings:={self.settings}", "_vocabulary:=none", *extra]
-        return subprocess.run(cmd, capture_output=True, text=True, timeout=40)
+        if octomap:
+            cmd = [self.octomap, f"__name:={name}", *extra]
+        else:
+            cmd = [self.node, f"__name:={name}", "_sensor:=stereo", f"_settings:={self.settings}",
+                   "_vocabulary:=none", *extra]
+        try:
+            return subprocess.run(cmd, capture_output=True, text=True, timeout=20)
+        except subprocess.TimeoutExpired:
+            self.fail(f"{' '.join(cmd)} did not stop within 20 s: the parameter was accepted")
 
     def test_bad_values_refused_naming_the_parameter(self):
         for key, (value, message) in REFUSED.items():
@@ -59,6 +67,16 @@ class SlamNodeParamsTest(unittest.TestCase):
             with self.subTest(arg=arg):
                 done = self.run_node("refuse_type", [arg])
                 self.assertEqual(done.returncode, 1, (arg, done.stdout[-500:], done.stderr[-500:]))
+                self.assertIn(message, done.stdout + done.stderr)
+
+    def test_octomap_wrong_types_refused(self):
+        # roslaunch reads value="-1e9" as the string "-1e9" (no '.'): refused, not ignored.
+        for key, value, message in (("resolution", "fine", "~resolution must be a number"),
+                                    ("pointcloud_min_z", "-1e9", "~pointcloud_min_z must be a number"),
+                                    ("latch", 1, "~latch must be true or false")):
+            with self.subTest(key=key):
+                done = self.run_node("refuse_octomap", [], {key: value}, octomap=True)
+                self.assertEqual(done.returncode, 1, (key, done.stdout[-500:], done.stderr[-500:]))
                 self.assertIn(message, done.stdout + done.stderr)
 
 
