@@ -228,8 +228,7 @@ void SlamNode::on_label_timer(const ros::WallTimerEvent&) {
     return;
   }
   if (first_labels_done_) return;
-  const bool connected = sub_labels_.getNumPublishers() > 0;
-  if (connected) labels_publisher_seen_ = true;
+  const bool connected = labels_publisher_connected();
   if (waiting_.empty()) return;
   // The publisher went away, or its labels take too long: track without them.
   // (~expect_labels: no publisher yet is not one that went away.)
@@ -271,8 +270,7 @@ bool SlamNode::hold_for_first_labels() {
   // Somebody publishes labels (a segmentation server, maybe still loading
   // its network), or is expected to (~expect_labels), but none came yet:
   // the first map waits for them.
-  const bool connected = sub_labels_.getNumPublishers() > 0;
-  if (connected) labels_publisher_seen_ = true;
+  const bool connected = labels_publisher_connected();
   if (cfg_.node.first_labels_timeout > 0 && counters_.labels_in == 0 &&
       (!waiting_.empty() || cfg_.node.expect_labels || connected))
     return true;
@@ -280,6 +278,12 @@ bool SlamNode::hold_for_first_labels() {
   // started after the first map changes nothing the wait could mend).
   first_labels_done_ = true;
   return false;
+}
+
+bool SlamNode::labels_publisher_connected() {
+  const bool connected = sub_labels_.getNumPublishers() > 0;
+  labels_publisher_seen_ = labels_publisher_seen_ || connected;
+  return connected;
 }
 
 void SlamNode::end_first_labels_wait(bool timed_out) {

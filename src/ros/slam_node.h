@@ -93,6 +93,8 @@ class SlamNode {
   // The labels nearest in time to `stamp` (nullptr: none yet); age = stamp - theirs.
   const cv::Mat* nearest_labels(double stamp, double& age) const;
   bool hold_for_first_labels();
+  // Whether a labels publisher is connected now (and remembers that one was).
+  bool labels_publisher_connected();
   void end_first_labels_wait(bool timed_out);
   void skip_before_labels(const FrameInput& frame);
   void process(const FrameInput& frame, const cv::Mat& labels, double label_age);
