@@ -48,26 +48,26 @@ class SlamNodeParamsTest(unittest.TestCase):
         except subprocess.TimeoutExpired:
             self.fail(f"{' '.join(cmd)} did not stop within 20 s: the parameter was accepted")
 
+    def assert_refused(self, done: subprocess.CompletedProcess, message: str) -> None:
+        """The node stopped at start-up (exit 1) with `message` in its output."""
+        self.assertEqual(done.returncode, 1, (message, done.stdout[-500:], done.stderr[-500:]))
+        self.assertIn(message, done.stdout + done.stderr)
+
     def test_bad_values_refused_naming_the_parameter(self):
         for key, (value, message) in REFUSED.items():
             with self.subTest(key=key):
-                done = self.run_node(f"refuse_{key}", [f"_{key}:={value}"])
-                self.assertEqual(done.returncode, 1, (key, done.stdout[-500:], done.stderr[-500:]))
-                self.assertIn(message, done.stdout + done.stderr)
+                self.assert_refused(self.run_node(f"refuse_{key}", [f"_{key}:={value}"]), message)
 
     def test_wrong_types_refused_not_replaced_by_defaults(self):
-        done = self.run_node("refuse_nan", [], {"max_label_age": float("nan")})
-        self.assertEqual(done.returncode, 1, done.stderr[-500:])
-        self.assertIn("~max_label_age must be a finite number", done.stdout + done.stderr)
+        self.assert_refused(self.run_node("refuse_nan", [], {"max_label_age": float("nan")}),
+                            "~max_label_age must be a finite number")
         for arg, message in (("_max_label_age:=soon", "~max_label_age must be a number"),
                              ("_queue_size:=ten", "~queue_size must be an integer"),
                              ("_use_labels:=1", "~use_labels must be true or false"),
                              ("_movable_ids:=person", "~movable_ids must be a list of integers"),
                              ("_Camera/fx:=wide", "~Camera/fx must be a number")):
             with self.subTest(arg=arg):
-                done = self.run_node("refuse_type", [arg])
-                self.assertEqual(done.returncode, 1, (arg, done.stdout[-500:], done.stderr[-500:]))
-                self.assertIn(message, done.stdout + done.stderr)
+                self.assert_refused(self.run_node("refuse_type", [arg]), message)
 
     def test_octomap_wrong_types_refused(self):
         # roslaunch reads value="-1e9" as the string "-1e9" (no '.'): refused, not ignored.
@@ -75,9 +75,7 @@ class SlamNodeParamsTest(unittest.TestCase):
                                     ("pointcloud_min_z", "-1e9", "~pointcloud_min_z must be a number"),
                                     ("latch", 1, "~latch must be true or false")):
             with self.subTest(key=key):
-                done = self.run_node("refuse_octomap", [], {key: value}, octomap=True)
-                self.assertEqual(done.returncode, 1, (key, done.stdout[-500:], done.stderr[-500:]))
-                self.assertIn(message, done.stdout + done.stderr)
+                self.assert_refused(self.run_node("refuse_octomap", [], {key: value}, octomap=True), message)
 
 
 if __name__ == "__main__":
