@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <iterator>
 #include <mutex>
@@ -131,6 +132,7 @@ DynamicFilterOptions from_storage(std::shared_ptr<cv::FileStorage> fs, const std
   } else {
     o.stages = stage_list(stages, kStagesKey, source);
   }
+  std::vector<std::pair<Sensor, std::string>> sensor_cue_nodes;  // read over the common cues below
   for (const std::string& key : root.keys()) {
     if (key.rfind(kPrefix, 0) != 0 || key == kStagesKey) continue;
     const cv::FileNode n = root[key];
@@ -155,6 +157,15 @@ DynamicFilterOptions from_storage(std::shared_ptr<cv::FileStorage> fs, const std
         m.validate();
       });
       if (!n.empty() && !n.isNone()) o.motion_cues.read(n);
+    } else if (key.rfind(kMotionCuesKey + std::string("."), 0) == 0) {
+      const std::string sensor = key.substr(std::strlen(kMotionCuesKey) + 1);
+      Sensor s;
+      try {
+        s = parse_sensor(sensor);
+      } catch (const std::exception&) {
+        throw InputError(source, 0, "unknown sensor in '" + key + "' (" + kMotionCuesKey + ".mono, .stereo, .rgbd)");
+      }
+      sensor_cue_nodes.emplace_back(s, key);
     } else if (key == kInpaintingKey) {
       read_options(n, key, source, [](const cv::FileNode& node) { InpaintOptions().read(node); });
       if (!n.empty() && !n.isNone()) o.inpainting.read(n);
@@ -164,10 +175,20 @@ DynamicFilterOptions from_storage(std::shared_ptr<cv::FileStorage> fs, const std
       if (!make)
         throw InputError(source, 0, "unknown key '" + key + "' (stages: " + joined(registered_stages()) +
                                         "; other keys: stages, keyframes, all_dynamic_fraction, overlap_extraction, "
-                                        "motion_cues, inpainting)");
+                                        "motion_cues, motion_cues.<sensor>, inpainting)");
       // Builds the stage once: its options are checked here, at load time.
       read_options(n, key, source, [&make](const cv::FileNode& node) { make(node); });
     }
+  }
+  for (const auto& [sensor, key] : sensor_cue_nodes) {
+    MotionCueOptions m = o.motion_cues;
+    read_options(root[key], key, source, [&m](const cv::FileNode& node) {
+      MotionCueOptions probe = m;
+      probe.read(node);
+      probe.validate();
+    });
+    if (!root[key].empty() && !root[key].isNone()) m.read(root[key]);
+    o.sensor_motion_cues[sensor] = m;
   }
   // A stage listed for one sensor must run on it.
   for (const auto& [sensor, list] : o.sensor_stages) o.validate(sensor);
@@ -221,6 +242,11 @@ const std::vector<std::string>& DynamicFilterOptions::stages_for(Sensor sensor) 
   return it != sensor_stages.end() ? it->second : stages;
 }
 
+const MotionCueOptions& DynamicFilterOptions::motion_cues_for(Sensor sensor) const {
+  auto it = sensor_motion_cues.find(sensor);
+  return it != sensor_motion_cues.end() ? it->second : motion_cues;
+}
+
 cv::FileNode DynamicFilterOptions::stage_node(const std::string& stage) const {
   if (!file) return cv::FileNode();
   return (*file)[kPrefix + stage];
@@ -237,7 +263,7 @@ void DynamicFilterOptions::validate(Sensor sensor) const {
   // The options' own checks (the motion cues', and each stage's as it is made,
   // e.g. li's) name the key; the preset file is added here.
   try {
-    if (!stages_for(sensor).empty()) motion_cues.validate();
+    if (!stages_for(sensor).empty()) motion_cues_for(sensor).validate();
     for (const std::string& name : stages_for(sensor)) {
       if (!is_registered(name))
         throw InputError(src, 0, "unknown stage '" + name + "' (known: " + joined(registered_stages()) + ")");
@@ -304,6 +330,7 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
   // nothing. A frame that needs them after one that did not detects its
   // previous frame's corners itself (the same corners).
   bool ahead_started = false;
+  const MotionCueOptions& cues = o_.motion_cues_for(sensor_);
   std::vector<TrackedPoint> tracked;
   EgoMotion ego;
   for (const auto& stage : stages_) {
@@ -311,16 +338,16 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
     if (!ahead_started && stage->needs_motion_cues()) {
       ahead_started = true;
       if (calib_ && cues_last_frame_)
-        detect_corners_ahead(current, *calib_, sensor_, o_.motion_cues, motion_cue_cache_);
+        detect_corners_ahead(current, *calib_, sensor_, cues, motion_cue_cache_);
     }
     if (!res.motion_cues && stage->needs_motion_cues() && stage->needs_motion_cues_for(ctx)) {
       const auto t0 = Clock::now();
       if (previous && calib_) {
         try {
-          tracked = track_points(*previous, current, *calib_, sensor_, o_.motion_cues, &motion_cue_cache_);
+          tracked = track_points(*previous, current, *calib_, sensor_, cues, &motion_cue_cache_);
           res.motion_cue_ms = motion_cue_cache_.ms;
           const auto t_ego = Clock::now();
-          ego = estimate_ego_motion(tracked, *calib_, sensor_, o_.motion_cues);
+          ego = estimate_ego_motion(tracked, *calib_, sensor_, cues);
           res.motion_cue_ms["ego"] = ms_since(t_ego);
         } catch (const std::exception& e) {  // documented never to throw: a bug, the stages see no cues
           tracked.clear();

@@ -11,6 +11,8 @@
 //   Dynamic.keyframes: 15                     keyframes remembered
 //   Dynamic.all_dynamic_fraction: 0.95        see DynamicFilterOptions
 //   Dynamic.motion_cues: {max_corners: 1000, ...}   MotionCueOptions
+//   Dynamic.motion_cues.rgbd: {lk_window: 15}  that sensor's changes to them
+//                                             (also .stereo, .mono)
 //   Dynamic.inpainting: {depth_tolerance_m: 0.2, ...} InpaintOptions (System::dense_frame)
 //   Dynamic.semantic: {classes: voc, margin: 15, policy: drop}
 //   Dynamic.<stage>: {...}                    that stage's options (missing keys: defaults)
@@ -40,6 +42,9 @@ struct DynamicFilterOptions {
   // The file's nodes Dynamic.<stage> (each stage's options); null: defaults.
   std::shared_ptr<const cv::FileStorage> file;
   MotionCueOptions motion_cues;
+  // Dynamic.motion_cues.<sensor>: motion_cues with that sensor's section read
+  // over it (keys it leaves out keep motion_cues' values).
+  std::map<Sensor, MotionCueOptions> sensor_motion_cues;
   InpaintOptions inpainting;  // background inpainting of System::dense_frame
   // DDL-SLAM Sec. III-D: the background is inpainted from "the last 15
   // previous keyframes"; the multi-view check reads them too.
@@ -72,6 +77,7 @@ struct DynamicFilterOptions {
   static DynamicFilterOptions parse(const std::string& yaml, const std::string& source);
 
   const std::vector<std::string>& stages_for(Sensor sensor) const;
+  const MotionCueOptions& motion_cues_for(Sensor sensor) const;
   bool enabled(Sensor sensor) const { return !stages_for(sensor).empty(); }
   // Dynamic.<stage> of the file, or an empty node.
   cv::FileNode stage_node(const std::string& stage) const;

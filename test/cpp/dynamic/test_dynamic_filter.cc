@@ -146,6 +146,29 @@ TEST(DynamicFilterOptions, LoadErrorsNameFileAndKey) {
   EXPECT_EQ(error_of("Dynamic.stages: [semantic, dm]\nDynamic.semantic: {classes: coco, margin: 5}\n"), "no error");
 }
 
+// Dynamic.motion_cues.<sensor>: that sensor's changes over Dynamic.motion_cues,
+// wherever the common key stands in the file; other sensors keep the common ones.
+TEST(DynamicFilterOptions, MotionCuesPerSensor) {
+  for (const char* text : {"Dynamic.stages: [semantic, dm]\nDynamic.motion_cues: {lk_window: 20, lk_levels: 4}\n"
+                           "Dynamic.motion_cues.rgbd: {lk_window: 15}\n",
+                           "Dynamic.stages: [semantic, dm]\nDynamic.motion_cues.rgbd: {lk_window: 15}\n"
+                           "Dynamic.motion_cues: {lk_window: 20, lk_levels: 4}\n"}) {
+    const DynamicFilterOptions o = DynamicFilterOptions::parse(text, "preset.yaml");
+    EXPECT_EQ(o.motion_cues_for(Sensor::kRGBD).lk_window, 15) << text;
+    EXPECT_EQ(o.motion_cues_for(Sensor::kRGBD).lk_levels, 4) << text;
+    EXPECT_EQ(o.motion_cues_for(Sensor::kStereo).lk_window, 20) << text;
+    EXPECT_EQ(o.motion_cues_for(Sensor::kMono).lk_window, 20) << text;
+  }
+  EXPECT_EQ(DynamicFilterOptions::parse("Dynamic.stages: [dm]\n", "p").motion_cues_for(Sensor::kMono).lk_window,
+            MotionCueOptions().lk_window);
+  EXPECT_TRUE(contains(error_of("Dynamic.stages: [dm]\nDynamic.motion_cues.lidar: {lk_window: 15}\n"),
+                       "Dynamic.motion_cues.lidar"));
+  EXPECT_TRUE(contains(error_of("Dynamic.stages: [dm]\nDynamic.motion_cues.rgbd: {lk_windw: 15}\n"),
+                       "Dynamic.motion_cues.rgbd.lk_windw"));
+  EXPECT_TRUE(contains(error_of("Dynamic.stages: [dm]\nDynamic.motion_cues.mono: {lk_window: 1}\n"), "lk_window"));
+  EXPECT_TRUE(contains(error_of("Dynamic.stages: [dm]\nDynamic.motion_cues.mono: 3\n"), "map"));
+}
+
 // Dynamic.overlap_extraction: -1 (auto, the default) by sensor and hardware
 // threads, 0 never, 1 always; anything else is refused by name.
 TEST(DynamicFilterOptions, OverlapExtraction) {
