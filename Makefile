@@ -4,6 +4,7 @@
 SHELL := /bin/bash
 ROOT := $(CURDIR)
 BUILD := $(ROOT)/build
+DEVEL := $(ROOT)/devel
 VENV := $(ROOT)/.venv
 PY := $(VENV)/bin/python3
 JOBS ?= 2
@@ -18,8 +19,11 @@ export PATH := $(VENV)/bin:$(PATH)
 setup:
 	@bash scripts/setup.sh
 
+# The devel space (what `source devel/setup.bash` puts on the ROS paths) is
+# kept out of build/: rosrun skips every file below PACKAGE/build/, so
+# `rosrun dynaorb dynaorb_node` found nothing in build/devel.
 $(BUILD)/CMakeCache.txt: | setup
-	cmake -S $(ROOT) -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DPYTHON_EXECUTABLE=$(PY)
+	cmake -S $(ROOT) -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DPYTHON_EXECUTABLE=$(PY) -DCATKIN_DEVEL_PREFIX=$(DEVEL)
 
 build: setup $(BUILD)/CMakeCache.txt
 	cmake --build $(BUILD) -j$(JOBS)
@@ -38,4 +42,4 @@ test: vocab
 	$(PY) -m pytest -q
 
 clean:
-	rm -rf $(BUILD)
+	rm -rf $(BUILD) $(DEVEL)

@@ -46,3 +46,18 @@ def test_launch_files_load(launch, tmp_path):
     assert run.returncode == 0, run.stderr
     if launch.startswith("dynaorb_"):
         assert "/dynaorb" in run.stdout.split()
+
+
+@pytest.mark.parametrize("node", ["dynaorb_node", "dynaorb_octomap", "segmentation_server", "trajectory_recorder"])
+def test_rosrun_finds_each_node_once(node, tmp_path):
+    """`rosrun dynaorb NODE` in the devel space the build makes: one match, the
+    devel space's (rosrun skips PACKAGE/build/, and asks which one when it finds two)."""
+    if shutil.which("rosrun") is None:
+        pytest.skip("rosrun not installed")
+    setup = REPO / "devel" / "setup.bash"
+    assert setup.is_file(), f"{setup} missing: build first (make build)"
+    env = dict(os.environ, ROS_HOME=str(tmp_path), ROS_LOG_DIR=str(tmp_path))
+    run = subprocess.run(["bash", "-c", f"source {setup} && rosrun --prefix echo dynaorb {node}"],
+                         capture_output=True, text=True, env=env, stdin=subprocess.DEVNULL, timeout=60)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert run.stdout.split() == [str(REPO / "devel" / "lib" / "dynaorb" / node)], run.stdout
