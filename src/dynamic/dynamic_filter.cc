@@ -80,6 +80,19 @@ void read_options(const cv::FileNode& node, const std::string& key, const std::s
   }
 }
 
+// Reads motion-cue options `node` (the key `key`) over `cues`. Checked here,
+// at load time, as the stages' options are (validate() checks them again for
+// options built in code).
+void read_motion_cues(const cv::FileNode& node, const std::string& key, const std::string& source,
+                      MotionCueOptions& cues) {
+  read_options(node, key, source, [&cues](const cv::FileNode& n) {
+    MotionCueOptions probe = cues;
+    probe.read(n);
+    probe.validate();
+  });
+  if (!node.empty() && !node.isNone()) cues.read(node);
+}
+
 std::vector<std::string> stage_list(const cv::FileNode& n, const std::string& key, const std::string& source) {
   if (!n.isSeq()) throw InputError(source, 0, "'" + key + "' must be a list of stage names ([semantic, dm])");
   std::vector<std::string> out;
@@ -149,14 +162,7 @@ DynamicFilterOptions from_storage(std::shared_ptr<cv::FileStorage> fs, const std
         throw InputError(source, 0, "'" + key + "' must be -1 (auto), 0 (never) or 1 (always)");
       o.overlap_extraction = static_cast<int>(n);
     } else if (key == kMotionCuesKey) {
-      // Checked here, at load time, as the stages' options are (validate() checks them again for
-      // options built in code).
-      read_options(n, key, source, [](const cv::FileNode& node) {
-        MotionCueOptions m;
-        m.read(node);
-        m.validate();
-      });
-      if (!n.empty() && !n.isNone()) o.motion_cues.read(n);
+      read_motion_cues(n, key, source, o.motion_cues);
     } else if (key.rfind(kMotionCuesKey + std::string("."), 0) == 0) {
       const std::string sensor = key.substr(std::strlen(kMotionCuesKey) + 1);
       Sensor s;
@@ -182,12 +188,7 @@ DynamicFilterOptions from_storage(std::shared_ptr<cv::FileStorage> fs, const std
   }
   for (const auto& [sensor, key] : sensor_cue_nodes) {
     MotionCueOptions m = o.motion_cues;
-    read_options(root[key], key, source, [&m](const cv::FileNode& node) {
-      MotionCueOptions probe = m;
-      probe.read(node);
-      probe.validate();
-    });
-    if (!root[key].empty() && !root[key].isNone()) m.read(root[key]);
+    read_motion_cues(root[key], key, source, m);
     o.sensor_motion_cues[sensor] = m;
   }
   // A stage listed for one sensor must run on it.

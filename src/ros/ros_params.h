@@ -6,6 +6,7 @@
 
 #include <ros/node_handle.h>
 
+#include <cmath>
 #include <string>
 #include <type_traits>
 
@@ -39,6 +40,16 @@ template <typename T>
 T param_or(const ros::NodeHandle& nh, const std::string& name, const T& fallback) {
   T v = fallback;
   read_param(nh, name, v);
+  return v;
+}
+
+// A duration parameter (s): its value, or `fallback` when it is not set;
+// InputError naming it when it is negative, NaN or infinite (`note` is
+// appended to the message, e.g. " (0: no wait)").
+inline double seconds_param_or(const ros::NodeHandle& nh, const std::string& name, double fallback,
+                               const std::string& note = "") {
+  const double v = param_or(nh, name, fallback);
+  if (!(v >= 0.0) || !std::isfinite(v)) throw InputError("~" + name + " must be a finite number of seconds >= 0" + note);
   return v;
 }
 
