@@ -31,15 +31,12 @@ void MotionCueOptions::read(const cv::FileNode& node) {
   read_option(node, "harris_k", harris_k);
   read_option(node, "max_background_corners", max_background_corners);
   read_option(node, "candidate_quality_level", candidate_quality_level);
-  read_option(node, "candidate_quality_level_rgbd", candidate_quality_level_rgbd);
   read_option(node, "subpix_window", subpix_window);
   read_option(node, "lk_window", lk_window);
   read_option(node, "lk_levels", lk_levels);
   read_option(node, "lk_max_iterations", lk_max_iterations);
   read_option(node, "lk_epsilon", lk_epsilon);
   read_option(node, "forward_backward_max", forward_backward_max);
-  read_option(node, "forward_backward_max_rgbd", forward_backward_max_rgbd);
-  read_option(node, "forward_backward_max_mono", forward_backward_max_mono);
   read_option(node, "stereo_depth_forward_backward_max", stereo_depth_forward_backward_max);
   read_option(node, "border", border);
   read_option(node, "depth_edge_radius", depth_edge_radius);
@@ -341,12 +338,6 @@ bool wants_stereo_depth(const FrameData& f, const map::Calibration& calib, Senso
 
 }  // namespace
 
-double MotionCueOptions::forward_backward_max_for(Sensor sensor) const {
-  if (sensor == Sensor::kRGBD && forward_backward_max_rgbd >= 0) return forward_backward_max_rgbd;
-  if (sensor == Sensor::kMono && forward_backward_max_mono >= 0) return forward_backward_max_mono;
-  return forward_backward_max;
-}
-
 void MotionCueOptions::validate() const {
   const detail::OptionChecks c("Dynamic.motion_cues");
   c.at_least("max_corners", max_corners, 1);
@@ -355,20 +346,14 @@ void MotionCueOptions::validate() const {
   c.at_least("block_size", block_size, 1);
   if (use_harris) c.between("harris_k", harris_k, 0, 1, false);
   c.at_least("max_background_corners", max_background_corners, 0);
-  const std::string own_quality = "in (0, quality_level) to be used, or <= 0 (off)";
   if (std::isnan(candidate_quality_level) || candidate_quality_level >= quality_level)
-    c.fail("candidate_quality_level", candidate_quality_level, own_quality);
-  if (std::isnan(candidate_quality_level_rgbd) || candidate_quality_level_rgbd >= quality_level)
-    c.fail("candidate_quality_level_rgbd", candidate_quality_level_rgbd,
-           own_quality + " for RGB-D (< 0: as candidate_quality_level)");
+    c.fail("candidate_quality_level", candidate_quality_level, "in (0, quality_level) to be used, or <= 0 (off)");
   c.at_least("subpix_window", subpix_window, 0);
   c.at_least("lk_window", lk_window, 3);
   c.at_least("lk_levels", lk_levels, 0);
   c.at_least("lk_max_iterations", lk_max_iterations, 1);
   c.positive("lk_epsilon", lk_epsilon);
   for (const auto& [key, value] : {std::pair<const char*, double>{"forward_backward_max", forward_backward_max},
-                                   {"forward_backward_max_rgbd", forward_backward_max_rgbd},
-                                   {"forward_backward_max_mono", forward_backward_max_mono},
                                    {"stereo_depth_forward_backward_max", stereo_depth_forward_backward_max}})
     if (std::isnan(value)) c.fail(key, value, "a number of pixels (<= 0: no backward check)");
   c.at_least("border", border, 0);
@@ -382,22 +367,6 @@ void MotionCueOptions::validate() const {
   if (!(min_ego_points >= 8)) c.fail("min_ego_points", min_ego_points, ">= 8 (the fundamental matrix's 8 points)");
 }
 
-double MotionCueOptions::candidate_quality_level_for(Sensor sensor) const {
-  if (sensor == Sensor::kRGBD && candidate_quality_level_rgbd >= 0) return candidate_quality_level_rgbd;
-  return candidate_quality_level;
-}
-
-namespace {
-
-// The options detect_corners runs with for this sensor.
-MotionCueOptions corner_options(const MotionCueOptions& o, Sensor sensor) {
-  MotionCueOptions c = o;
-  c.candidate_quality_level = o.candidate_quality_level_for(sensor);
-  return c;
-}
-
-}  // namespace
-
 void detect_corners_ahead(const FrameData& frame, const map::Calibration& calib, Sensor sensor,
                           const MotionCueOptions& o, MotionCueCache& cache) {
   cache.corners_image = std::move(cache.next_corners_image);
@@ -407,7 +376,7 @@ void detect_corners_ahead(const FrameData& frame, const map::Calibration& calib,
   const cv::Mat right = wants_stereo_depth(frame, calib, sensor) ? frame.right : cv::Mat();
   const double bf = calib.bf;
   cache.next_corners_image = grey;
-  cache.next_corners = std::async(std::launch::async, [grey, candidates, right, bf, o = corner_options(o, sensor)] {
+  cache.next_corners = std::async(std::launch::async, [grey, candidates, right, bf, o] {
                          AheadCorners a;
                          a.corners = detect_corners(grey, o, candidates);
                          if (!right.empty() && !a.corners.empty())
@@ -432,7 +401,7 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
                        cache->corners_image.size() == size;
     AheadCorners detected;
     if (ahead) detected = cache->corners.get();
-    else detected.corners = detect_corners(prev.grey, corner_options(o, sensor), prev.candidates);
+    else detected.corners = detect_corners(prev.grey, o, prev.candidates);
     const std::vector<cv::Point2f>& corners = detected.corners;
     if (corners.empty()) return out;
     if (cache) cache->ms["corners"] = ms_since(t0);
@@ -452,9 +421,8 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
     }
 
     t0 = Clock::now();
-    const double fb_max = o.forward_backward_max_for(sensor);
-    const auto inside = [&](size_t, const cv::Point2f& p) { return away_from_edge(p, size, border); };
-    const Flow flow = track_forward_backward(prev_pyramid, cur_pyramid, corners, o, fb_max, inside);
+        const auto inside = [&](size_t, const cv::Point2f& p) { return away_from_edge(p, size, border); };
+    const Flow flow = track_forward_backward(prev_pyramid, cur_pyramid, corners, o, o.forward_backward_max, inside);
     std::vector<cv::Point2f> kept_prev, kept_cur;
     std::vector<size_t> kept_corner;
     for (size_t i = 0; i < corners.size(); ++i) {

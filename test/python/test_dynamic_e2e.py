@@ -168,7 +168,7 @@ def test_full_within_1_2x_of_static_and_off_3x_worse(tmp_path, synth_seeds, sens
     #   mono   1.17 / 0.72 / 0.89 (0.89), 53-56 of 60 frames tracked (static: 55-56);
     #          1.19 / 1.06 / 1.00 (1.06) before frames left the 4x feature count
     #          once one tracks 1000 points (mono_init_release_tracked);
-    #          1.24 / 1.07 / 1.00 with the backward LK check (forward_backward_max_mono)
+    #          1.24 / 1.07 / 1.00 with the backward LK check (Dynamic.motion_cues.mono: forward_backward_max)
     # Where the target is missed, the bound is a regression bound.
     # off / static median: RGB-D 152, stereo 65, mono 8.2.
     assert full_median <= {"rgbd": 1.3, "stereo": 1.2, "mono": 1.2}[sensor]

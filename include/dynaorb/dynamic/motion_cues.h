@@ -42,10 +42,7 @@ struct MotionCueOptions {
   // and it is never found moving. Used when 0 < value < quality_level;
   // <= 0 (the default, the papers' codes): one detection over the image;
   // a value >= quality_level is refused (validate).
-  // `candidate_quality_level_rgbd` for RGB-D frames when >= 0 (else the
-  // first; 0: off for RGB-D): candidate_quality_level_for.
   double candidate_quality_level = -1;
-  double candidate_quality_level_rgbd = -1;
   // Sub-pixel corner refinement: cornerSubPix half-window of DS-SLAM's code
   // (Size(10, 10)); 0 turns it off.
   int subpix_window = 10;  // px
@@ -64,11 +61,7 @@ struct MotionCueOptions {
   // Ours: a track is kept only when tracking the current point back lands
   // within this many pixels of where it started (rejects occlusions and drift).
   // <= 0: no backward tracking (DS-SLAM's code has none), half the LK cost.
-  // `forward_backward_max_rgbd` for RGB-D frames and `forward_backward_max_mono`
-  // for monocular ones when >= 0 (else the first): forward_backward_max_for.
   double forward_backward_max = 1.0;  // px
-  double forward_backward_max_rgbd = -1;
-  double forward_backward_max_mono = -1;
   // The same check for a corner's stereo match (LK along the row into the
   // right image, stereo_depths): ours, kept apart from the flow's, so the
   // flow can go without it while the depths keep it. <= 0: none.
@@ -96,8 +89,6 @@ struct MotionCueOptions {
   // below 1, a ratio outside (0, 1), a candidate quality level at or above
   // quality_level, ...); DynamicFilterOptions::parse (at load) and validate call it.
   void validate() const;
-  double forward_backward_max_for(Sensor sensor) const;  // the backward-check bound for this sensor
-  double candidate_quality_level_for(Sensor sensor) const;
 };
 
 // The corners of an image detected ahead, on another thread, and for a
@@ -132,8 +123,7 @@ struct MotionCueCache {
 
 // The corners track_points tracks from an image: goodFeaturesToTrack
 // inside the border (inside `candidates` a detection of their own when
-// candidate_quality_level is set; track_points and detect_corners_ahead pass
-// the sensor's, candidate_quality_level_for), at most max_background_corners of them outside
+// candidate_quality_level is set), at most max_background_corners of them outside
 // `candidates` (CV_8UC1 of the image's size; else all count as outside),
 // cornerSubPix, near-duplicates removed. May throw cv::Exception on options
 // OpenCV refuses.
@@ -161,7 +151,7 @@ void detect_corners_ahead(const FrameData& frame, const map::Calibration& calib,
 
 // Harris corners on prev.grey (detect_corners with prev.candidates), followed
 // by pyramidal LK into cur.grey with a forward-backward check
-// (forward_backward_max[_rgbd]); pairs with either end within `border` of the
+// (forward_backward_max); pairs with either end within `border` of the
 // image edge are rejected. prev_depth comes from prev.depth (CV_32FC1 metres)
 // when set; else, for stereo, from LK of the corner along the rectified row
 // into prev.right (|dy| <= 1 px, disparity > 0, depth = calib.bf /

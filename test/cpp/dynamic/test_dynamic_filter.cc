@@ -167,6 +167,9 @@ TEST(DynamicFilterOptions, MotionCuesPerSensor) {
                        "Dynamic.motion_cues.rgbd.lk_windw"));
   EXPECT_TRUE(contains(error_of("Dynamic.stages: [dm]\nDynamic.motion_cues.mono: {lk_window: 1}\n"), "lk_window"));
   EXPECT_TRUE(contains(error_of("Dynamic.stages: [dm]\nDynamic.motion_cues.mono: 3\n"), "map"));
+  // The one-option per-sensor keys these sections replaced are unknown.
+  EXPECT_TRUE(contains(error_of("Dynamic.stages: [dm]\nDynamic.motion_cues: {forward_backward_max_rgbd: 0}\n"),
+                       "unknown option 'Dynamic.motion_cues.forward_backward_max_rgbd'"));
 }
 
 // Dynamic.overlap_extraction: -1 (auto, the default) by sensor and hardware
@@ -236,6 +239,15 @@ TEST(DynamicFilterOptions, ShippedPresetsLoad) {
   }
   const DynamicFilterOptions full = DynamicFilterOptions::load((dir / "full.yaml").string());
   EXPECT_EQ(full.stages_for(Sensor::kRGBD), (std::vector<std::string>{"semantic", "dm"}));
+  // full's per-sensor motion cues: RGB-D and mono track forward only, RGB-D
+  // detects the candidates' corners with their own quality; stereo keeps the
+  // common cues.
+  EXPECT_EQ(full.motion_cues_for(Sensor::kRGBD).forward_backward_max, 0);
+  EXPECT_EQ(full.motion_cues_for(Sensor::kMono).forward_backward_max, 0);
+  EXPECT_EQ(full.motion_cues_for(Sensor::kStereo).forward_backward_max, MotionCueOptions().forward_backward_max);
+  EXPECT_DOUBLE_EQ(full.motion_cues_for(Sensor::kRGBD).candidate_quality_level, 0.001);
+  EXPECT_LE(full.motion_cues_for(Sensor::kStereo).candidate_quality_level, 0);
+  EXPECT_LE(full.motion_cues_for(Sensor::kMono).candidate_quality_level, 0);
   EXPECT_FALSE(DynamicFilterOptions::load((dir / "off.yaml").string()).enabled(Sensor::kRGBD));
   EXPECT_EQ(DynamicFilterOptions::load((dir / "ddl.yaml").string()).keyframes, 15);
 }

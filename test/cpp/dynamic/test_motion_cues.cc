@@ -192,8 +192,7 @@ bool same_points(const std::vector<TrackedPoint>& a, const std::vector<TrackedPo
 
 // Without the backward check (forward_backward_max 0) every forward track
 // that stays inside the border is kept, at the same place: the checked
-// tracks are a subset. forward_backward_max_rgbd applies to RGB-D alone,
-// forward_backward_max_mono to monocular frames alone.
+// tracks are a subset.
 TEST(MotionCues, BackwardCheckOnlyRemovesTracks) {
   for (Sensor sensor : {Sensor::kRGBD, Sensor::kStereo, Sensor::kMono}) {
     auto calib = make_calibration(sensor);
@@ -211,14 +210,6 @@ TEST(MotionCues, BackwardCheckOnlyRemovesTracks) {
       ASSERT_LT(k, b.size()) << "a checked track missing without the check";
       EXPECT_EQ(b[k].cur, t.cur);
     }
-    MotionCueOptions rgbd_only, mono_only;
-    rgbd_only.forward_backward_max_rgbd = 0;
-    mono_only.forward_backward_max_mono = 0;
-    EXPECT_EQ(track_points(p.prev, p.cur, *calib, sensor, rgbd_only).size(),
-              sensor == Sensor::kRGBD ? b.size() : a.size());
-    EXPECT_EQ(track_points(p.prev, p.cur, *calib, sensor, mono_only).size(),
-              sensor == Sensor::kMono ? b.size() : a.size());
-    EXPECT_EQ(mono_only.forward_backward_max_for(sensor), sensor == Sensor::kMono ? 0.0 : 1.0);
   }
 }
 
@@ -582,8 +573,8 @@ TEST(MotionCues, DegenerateInputGivesNothingAndNeverThrows) {
 TEST(MotionCues, OptionsReadFromYaml) {
   cv::FileStorage fs(
       "%YAML:1.0\nmotion:\n  max_corners: 500\n  use_harris: 0\n  border: 5\n  forward_backward_max: 0.5\n"
-      "  forward_backward_max_rgbd: 0\n  forward_backward_max_mono: 0.75\n  stereo_depth_forward_backward_max: 0.25\n  max_background_corners: 200\n"
-      "  candidate_quality_level: 0.002\n  candidate_quality_level_rgbd: 0.001\n"
+      "  stereo_depth_forward_backward_max: 0.25\n  max_background_corners: 200\n"
+      "  candidate_quality_level: 0.002\n"
       "bad:\n  max_corners: many\n",
       cv::FileStorage::READ | cv::FileStorage::MEMORY);
   MotionCueOptions o;
@@ -592,13 +583,9 @@ TEST(MotionCues, OptionsReadFromYaml) {
   EXPECT_FALSE(o.use_harris);
   EXPECT_EQ(o.border, 5);
   EXPECT_DOUBLE_EQ(o.forward_backward_max, 0.5);
-  EXPECT_DOUBLE_EQ(o.forward_backward_max_rgbd, 0);
-  EXPECT_DOUBLE_EQ(o.forward_backward_max_mono, 0.75);
   EXPECT_DOUBLE_EQ(o.stereo_depth_forward_backward_max, 0.25);
   EXPECT_EQ(o.max_background_corners, 200);
-  EXPECT_DOUBLE_EQ(o.candidate_quality_level_for(Sensor::kRGBD), 0.001);
-  EXPECT_DOUBLE_EQ(o.candidate_quality_level_for(Sensor::kStereo), 0.002);
-  EXPECT_DOUBLE_EQ(o.candidate_quality_level_for(Sensor::kMono), 0.002);
+  EXPECT_DOUBLE_EQ(o.candidate_quality_level, 0.002);
   EXPECT_DOUBLE_EQ(o.quality_level, 0.01);  // missing: default kept
   EXPECT_EQ(o.min_ego_points, 12);
   MotionCueOptions b;
@@ -612,8 +599,7 @@ TEST(MotionCues, OptionsOutOfRangeAreRefusedByName) {
   EXPECT_NO_THROW(MotionCueOptions().validate());
   MotionCueOptions on;
   on.candidate_quality_level = 0.005;  // below quality_level: used
-  on.candidate_quality_level_rgbd = 0;  // off for RGB-D
-  on.forward_backward_max_rgbd = -1;    // follows forward_backward_max
+  on.forward_backward_max = 0;         // no backward check
   on.max_background_corners = 0;        // all
   EXPECT_NO_THROW(on.validate());
   const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -625,10 +611,9 @@ TEST(MotionCues, OptionsOutOfRangeAreRefusedByName) {
       {"quality_level", [&](MotionCueOptions& o) { o.quality_level = nan; }},
       {"candidate_quality_level", [](MotionCueOptions& o) { o.candidate_quality_level = 0.01; }},
       {"candidate_quality_level", [&](MotionCueOptions& o) { o.candidate_quality_level = nan; }},
-      {"candidate_quality_level_rgbd", [](MotionCueOptions& o) { o.candidate_quality_level_rgbd = 0.5; }},
       {"lk_window", [](MotionCueOptions& o) { o.lk_window = 2; }},
       {"lk_epsilon", [](MotionCueOptions& o) { o.lk_epsilon = 0; }},
-      {"forward_backward_max_mono", [&](MotionCueOptions& o) { o.forward_backward_max_mono = nan; }},
+      {"forward_backward_max", [&](MotionCueOptions& o) { o.forward_backward_max = nan; }},
       {"depth_edge_max_ratio", [](MotionCueOptions& o) { o.depth_edge_max_ratio = -0.1; }},
       {"ransac_reprojection_px", [](MotionCueOptions& o) { o.ransac_reprojection_px = 0; }},
       {"ransac_confidence", [](MotionCueOptions& o) { o.ransac_confidence = 1; }},
@@ -650,12 +635,12 @@ TEST(MotionCues, OptionsOutOfRangeAreRefusedByName) {
   for (const std::string stages : {"[semantic, dm]", "[]"}) {
     try {
       DynamicFilterOptions::parse("Dynamic.stages: " + stages +
-                                      "\nDynamic.motion_cues:\n  candidate_quality_level_rgbd: 0.02\n",
+                                      "\nDynamic.motion_cues:\n  candidate_quality_level: 0.02\n",
                                   "mine.yaml");
       ADD_FAILURE() << stages << " accepted";
     } catch (const InputError& e) {
       EXPECT_NE(std::string(e.what()).find("mine.yaml"), std::string::npos) << e.what();
-      EXPECT_NE(std::string(e.what()).find("'candidate_quality_level_rgbd' is 0.02"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("'candidate_quality_level' is 0.02"), std::string::npos) << e.what();
     }
   }
   // Options built in code are checked by validate(sensor), which the filter and the System call.
