@@ -20,12 +20,6 @@ constexpr const char* kDefaultVocabularyFile = "dynaorb_default_v1_k10_L6.bin";
 // PASCAL VOC's movable classes (python/dynaorb/segmentation/labels.py, DynaSLAM's and STDyn-SLAM's set).
 const std::vector<int> kPascalVocMovable = {1, 2, 3, 4, 6, 7, 8, 10, 12, 13, 14, 15, 17, 19};
 
-void override_number(const ros::NodeHandle& pnh, const std::string& key, double& value) {
-  read_param(pnh, key, value);
-}
-void override_number(const ros::NodeHandle& pnh, const std::string& key, int& value) {
-  read_param(pnh, key, value);
-}
 void override_optional(const ros::NodeHandle& pnh, const std::string& key, std::optional<double>& value) {
   double v;
   if (read_param(pnh, key, v)) value = v;
@@ -34,10 +28,10 @@ void override_optional(const ros::NodeHandle& pnh, const std::string& key, std::
 // The YAML's keys as parameters: "Camera.fx" -> ~Camera/fx.
 void override_settings(const ros::NodeHandle& pnh, Settings& s) {
   CameraSettings& c = s.camera;
-  override_number(pnh, "Camera/fx", c.fx);
-  override_number(pnh, "Camera/fy", c.fy);
-  override_number(pnh, "Camera/cx", c.cx);
-  override_number(pnh, "Camera/cy", c.cy);
+  read_param(pnh, "Camera/fx", c.fx);
+  read_param(pnh, "Camera/fy", c.fy);
+  read_param(pnh, "Camera/cx", c.cx);
+  read_param(pnh, "Camera/cy", c.cy);
   const char* dist_keys[] = {"Camera/k1", "Camera/k2", "Camera/p1", "Camera/p2", "Camera/k3"};
   for (int i = 0; i < 5; ++i) {
     double v;
@@ -49,20 +43,20 @@ void override_settings(const ros::NodeHandle& pnh, Settings& s) {
     }
     c.dist.at<double>(i) = v;
   }
-  override_number(pnh, "Camera/width", c.width);
-  override_number(pnh, "Camera/height", c.height);
-  override_number(pnh, "Camera/fps", c.fps);
+  read_param(pnh, "Camera/width", c.width);
+  read_param(pnh, "Camera/height", c.height);
+  read_param(pnh, "Camera/fps", c.fps);
   int rgb;
   if (read_param(pnh, "Camera/RGB", rgb)) c.rgb = rgb != 0;
   override_optional(pnh, "Camera/bf", c.bf);
   override_optional(pnh, "ThDepth", c.th_depth);
   override_optional(pnh, "DepthMapFactor", c.depth_map_factor);
   ExtractorSettings& e = s.extractor;
-  override_number(pnh, "ORBextractor/nFeatures", e.n_features);
-  override_number(pnh, "ORBextractor/scaleFactor", e.scale_factor);
-  override_number(pnh, "ORBextractor/nLevels", e.n_levels);
-  override_number(pnh, "ORBextractor/iniThFAST", e.ini_th_fast);
-  override_number(pnh, "ORBextractor/minThFAST", e.min_th_fast);
+  read_param(pnh, "ORBextractor/nFeatures", e.n_features);
+  read_param(pnh, "ORBextractor/scaleFactor", e.scale_factor);
+  read_param(pnh, "ORBextractor/nLevels", e.n_levels);
+  read_param(pnh, "ORBextractor/iniThFAST", e.ini_th_fast);
+  read_param(pnh, "ORBextractor/minThFAST", e.min_th_fast);
 }
 
 std::vector<double> triple(const ros::NodeHandle& pnh, const std::string& name, const std::vector<double>& fallback) {
@@ -164,8 +158,7 @@ NodeConfig read_config(const ros::NodeHandle& pnh) {
   n.first_labels_timeout = seconds_param_or(pnh, "first_labels_timeout", n.first_labels_timeout, " (0: no wait)");
   n.expect_labels = param_or(pnh, "expect_labels", n.expect_labels);
   if (n.max_frames_waiting < 1) throw InputError("~max_frames_waiting must be >= 1");
-  n.movable_ids_given = pnh.getParam("movable_ids", n.movable_ids);
-  if (!n.movable_ids_given && pnh.hasParam("movable_ids")) throw InputError("~movable_ids must be a list of integers");
+  n.movable_ids_given = read_param(pnh, "movable_ids", n.movable_ids);
   if (!n.movable_ids_given) n.movable_ids = kPascalVocMovable;
   n.movable_ids_from = param_or<std::string>(pnh, "movable_ids_from", n.movable_ids_from);
 

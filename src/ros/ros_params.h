@@ -9,6 +9,7 @@
 #include <cmath>
 #include <string>
 #include <type_traits>
+#include <vector>
 
 #include "dynaorb/io/errors.h"
 
@@ -19,6 +20,8 @@ const char* param_type_name() {
   if constexpr (std::is_same_v<T, bool>) return "true or false";
   else if constexpr (std::is_same_v<T, int>) return "an integer";
   else if constexpr (std::is_floating_point_v<T>) return "a number";
+  else if constexpr (std::is_same_v<T, std::vector<int>>) return "a list of integers";
+  else if constexpr (std::is_same_v<T, std::vector<double>>) return "a list of numbers";
   else return "a string";
 }
 
