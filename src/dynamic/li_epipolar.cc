@@ -162,6 +162,10 @@ LiEpipolarResult li_epipolar_check(const cv::Mat& prev_grey, const cv::Mat& cur_
   }
   r.has_F = true;
   r.F = cv::Matx33d(F.ptr<double>());
+  for (size_t i = 0; i < r.tracks.size(); ++i) {
+    r.tracks[i].prev_u = p[i];
+    r.tracks[i].cur_u = q[i];
+  }
   for (unsigned char m : inlier) r.f_inliers += m ? 1 : 0;
 
   for (size_t i = 0; i < r.tracks.size(); ++i) {

@@ -1,5 +1,6 @@
 #include "dynaorb/dynamic/li_options.h"
 
+#include <cmath>
 #include <string>
 
 #include "dynaorb/io/errors.h"
@@ -35,6 +36,14 @@ void LiOptions::read(const cv::FileNode& node) {
   read_option(node, "alpha_epi", alpha_epi);
   read_option(node, "beta_epi", beta_epi);
   read_option(node, "disparity_patch_radius", disparity_patch_radius);
+  read_option(node, "rigid_check", rigid_check);
+  read_option(node, "rigid_threshold_px", rigid_threshold_px);
+  read_option(node, "rigid_gate_px", rigid_gate_px);
+  read_option(node, "rigid_disparity_sigma_px", rigid_disparity_sigma_px);
+  read_option(node, "rigid_ransac_iterations", rigid_ransac_iterations);
+  read_option(node, "rigid_min_agreeing", rigid_min_agreeing);
+  read_option(node, "rigid_max_angle_deg", rigid_max_angle_deg);
+  read_option(node, "rigid_max_ratio", rigid_max_ratio);
   read_option(node, "alpha_s", alpha_s);
   read_option(node, "beta_s", beta_s);
   read_option(node, "t_disp", t_disp);
@@ -86,6 +95,14 @@ void LiOptions::validate() const {
   c.non_negative("alpha_epi", alpha_epi, "no fixed part in eq. 3");
   c.non_negative("beta_epi", beta_epi, "no disparity part in eq. 3");
   c.at_least("disparity_patch_radius", disparity_patch_radius, 0);
+  c.positive("rigid_threshold_px", rigid_threshold_px);
+  c.positive("rigid_gate_px", rigid_gate_px);
+  c.non_negative("rigid_disparity_sigma_px", rigid_disparity_sigma_px, "no disparity error");
+  c.at_least("rigid_ransac_iterations", rigid_ransac_iterations, 1);
+  c.at_least("rigid_min_agreeing", rigid_min_agreeing, 0);
+  c.between("rigid_max_angle_deg", rigid_max_angle_deg, 0, 180, true);
+  if (!(rigid_max_ratio >= 1) || std::isinf(rigid_max_ratio))
+    c.fail("rigid_max_ratio", rigid_max_ratio, "a finite number >= 1");
   c.non_negative("alpha_s", alpha_s, "no area term in eq. 4");
   c.non_negative("beta_s", beta_s, "no disparity term in eq. 4");
   c.non_negative("t_disp", t_disp, "every disparity difference splits");

@@ -5,6 +5,7 @@
 
 #include "dynaorb/core/stopwatch.h"
 #include "dynaorb/dynamic/li_disparity.h"
+#include "dynaorb/dynamic/li_rigidity.h"
 #include "dynaorb/dynamic/li_superpixels.h"
 
 namespace dynaorb::dynamic {
@@ -118,6 +119,8 @@ void LiStage::detect(Context& ctx, StageReport& report) {
       v[e.failure] = 1;
       return;
     }
+    v["epipolar_dynamic"] = e.dynamic;
+    if (o_.rigid_check) rigidity_check(ctx, report);
     std::vector<cv::Point2f> dyn_pts;
     std::vector<float> dyn_disp;
     for (size_t i = 0; i < e.tracks.size(); ++i) {
@@ -149,6 +152,23 @@ void LiStage::detect(Context& ctx, StageReport& report) {
     // OpenCV refusing an input it should not have been given: degrade, never crash.
     v["failed_opencv"] = 1;
   }
+}
+
+void LiStage::rigidity_check(Context& ctx, StageReport& report) {
+  auto& v = report.values;
+  const auto t0 = Clock::now();
+  std::optional<Eigen::Isometry3d> prior;
+  if (ctx.T_cw_predicted && ctx.previous->T_cw) prior = *ctx.T_cw_predicted * ctx.previous->T_cw->inverse();
+  last_.rigidity = li_rigidity_check(last_.epipolar, ctx.previous->depth, *ctx.calib, prior, o_);
+  const LiRigidityResult& r = last_.rigidity;
+  v["rigid_ms"] = ms_since(t0);
+  v["rigid_prior"] = r.used_prior ? 1 : 0;
+  v["rigid_candidates"] = r.candidates;
+  v["rigid_inliers"] = r.inliers;
+  v["rigid_judged"] = r.judged;
+  v["rigid_over_threshold"] = r.over_threshold;
+  v["rigid_added"] = r.added;
+  if (!r.failure.empty()) v["rigid_" + r.failure] = 1;
 }
 
 void LiStage::carry_rectangles(Context& ctx, StageReport& report) {

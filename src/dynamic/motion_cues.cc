@@ -19,6 +19,8 @@
 #include "file_node_options.h"
 #include "option_checks.h"
 
+#include "view_geometry.h"
+
 namespace dynaorb::dynamic {
 
 void MotionCueOptions::read(const cv::FileNode& node) {
@@ -237,16 +239,6 @@ std::vector<cv::Point2f> undistorted(const std::vector<cv::Point2f>& px, const m
 }
 
 // OpenCV's rotation vector and translation as an isometry.
-Eigen::Isometry3d isometry(const cv::Vec3d& rvec, const cv::Vec3d& tvec) {
-  cv::Matx33d R;
-  cv::Rodrigues(rvec, R);
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) T.linear()(r, c) = R(r, c);
-  T.translation() = Eigen::Vector3d(tvec[0], tvec[1], tvec[2]);
-  return T;
-}
-
 // The points the pose T_cur_prev explains: in front of the camera and
 // reprojected within `threshold` px (a pose is checked by what it explains,
 // not by what the solver reports). None for a non-finite pose.
@@ -524,7 +516,7 @@ EgoMotion estimate_ego_motion(const std::vector<TrackedPoint>& points, const map
             img_in.push_back(image[k]);
           }
           cv::solvePnPRefineLM(obj_in, img_in, K, cv::noArray(), rvec, tvec);
-          T = isometry(rvec, tvec);
+          T = view::isometry(rvec, tvec);
           inl = pnp_inliers(object, image, calib, T, threshold);
         }
         if (ok && static_cast<int>(inl.size()) >= min_points) {

@@ -19,6 +19,17 @@ namespace dynaorb::dynamic::view {
 // A usable metric depth value (RGB-D holes are 0, stereo disparity holes may be NaN).
 inline bool valid_depth(float z) { return std::isfinite(z) && z > 0.f; }
 
+// The pose of OpenCV's (rvec, tvec), e.g. from solvePnP.
+inline Eigen::Isometry3d isometry(const cv::Vec3d& rvec, const cv::Vec3d& tvec) {
+  cv::Matx33d R;
+  cv::Rodrigues(rvec, R);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) T.linear()(r, c) = R(r, c);
+  T.translation() = Eigen::Vector3d(tvec[0], tvec[1], tvec[2]);
+  return T;
+}
+
 inline bool inside(const cv::Point2f& p, const cv::Size& size, int border = 0) {
   return std::isfinite(p.x) && std::isfinite(p.y) && p.x >= border && p.y >= border &&
          p.x <= size.width - 1 - border && p.y <= size.height - 1 - border;

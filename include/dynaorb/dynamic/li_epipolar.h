@@ -15,10 +15,13 @@ namespace dynaorb::dynamic {
 
 struct LiTrack {
   cv::Point2f prev, cur;     // tracked-image pixels (previous, current)
+  cv::Point2f prev_u, cur_u; // the same, undistorted (the pixels of eq. 1-2)
   float disparity = 0;       // d_i of eq. 3 at `cur`, full-resolution px; 0: none, not judged
   double distance = -1;      // D_epi of eq. 2, px (-1: not judged)
   double threshold = 0;      // T_epi of eq. 3, px
   bool dynamic = false;
+  double rigid_residual = -1;  // px, li_rigidity.h (-1: not checked)
+  double rigid_threshold = 0;  // px, the residual's threshold there
 };
 
 struct LiEpipolarResult {

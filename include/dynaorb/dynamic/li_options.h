@@ -73,6 +73,30 @@ struct LiOptions {
   // disparities within this radius (ours); none there: the point is not judged.
   int disparity_patch_radius = 2;
 
+  // Ours, off as in the paper (li_rigidity.h): also judge each LK pair by its
+  // reprojection error under the camera's motion from PnP on the previous
+  // frame's SGBM depth, so that an object travelling along its epipolar
+  // lines (which eq. 2-3 cannot see) is found. The PnP (EPnP RANSAC,
+  // rigid_ransac_iterations, inliers within rigid_threshold_px) runs on the
+  // pairs within rigid_gate_px of SLAM's constant-velocity prediction (else
+  // on those eq. 3 left static). A pair is over its threshold when its
+  // residual exceeds rigid_threshold_px plus how far its reprojection moves
+  // for a disparity error of rigid_disparity_sigma_px; it becomes dynamic
+  // when at least rigid_min_agreeing others over theirs, near it by eq. 4's
+  // relation, are off within rigid_max_angle_deg of its direction and by
+  // at most rigid_max_ratio times (or 1 / that) its length.
+  // Values measured on stereo seeds 0-11 (`dynaorb bench --suite seeds
+  // --sensors stereo --conditions static,full --preset FILE`) and KITTI 06;
+  // see config/dynamic/li.yaml for what the check gains and costs.
+  bool rigid_check = false;
+  double rigid_threshold_px = 1.0;
+  double rigid_disparity_sigma_px = 2.0;
+  double rigid_gate_px = 3.0;
+  int rigid_ransac_iterations = 100;
+  int rigid_min_agreeing = 2;
+  double rigid_max_angle_deg = 30.0;
+  double rigid_max_ratio = 2.0;
+
   // --- Eq. 4: two dynamic points are one object when their distance is at most
   // T_s = alpha_s + beta_s * d (d: the pair's mean disparity) and their
   // disparities differ by at most T_disp. Ours: 30 px (the spacing of N = 500

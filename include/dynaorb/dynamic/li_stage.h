@@ -6,7 +6,9 @@
 //      (bf / d) goes into ctx.current.depth for the later stages and the map;
 //   2. quadtree FAST on the previous left image, LK into the current one,
 //      RANSAC F, epipolar distance vs alpha_epi + beta_epi * d (eq. 1-3,
-//      li_epipolar.h);
+//      li_epipolar.h); (ours, LiOptions::rigid_check) also the pairs'
+//      reprojection error under the camera's motion from PnP on the previous
+//      frame's depth, with agreeing neighbours (li_rigidity.h);
 //   3. dynamic points clustered into ROIs (eq. 4, > 4 points, li_rois.h);
 //   4. improved SLIC on the ROIs (eq. 5-7, li_superpixels.h);
 //   5. a RANSAC disparity plane per superpixel (eq. 8, li_planes.h);
@@ -32,6 +34,7 @@
 #include "dynaorb/dynamic/li_options.h"
 #include "dynaorb/dynamic/li_planes.h"
 #include "dynaorb/dynamic/li_regions.h"
+#include "dynaorb/dynamic/li_rigidity.h"
 #include "dynaorb/dynamic/li_rois.h"
 #include "dynaorb/dynamic/stage.h"
 
@@ -41,6 +44,7 @@ namespace dynaorb::dynamic {
 struct LiFrameDetail {
   cv::Mat disparity;                 // CV_32FC1 full-resolution px, 0 = none
   LiEpipolarResult epipolar;
+  LiRigidityResult rigidity;         // rigid_check (ours)
   std::vector<int> dynamic_tracks;   // indices into epipolar.tracks; cluster members index this
   std::vector<LiCluster> clusters;   // the moving objects' ROIs
   std::vector<cv::Rect> slic_areas;  // the merged ROIs SLIC ran on
@@ -70,7 +74,12 @@ class LiStage : public Stage {
   // input one of skipped_no_calibration, skipped_bad_input, skipped_no_right,
   // skipped_no_previous, skipped_previous_mismatch, too_few_points, f_failed,
   // no_moving_object, failed_opencv (= 1) and nothing new is marked;
-  // kept_rectangles: the earlier frames' rectangles marked again (keep_frames).
+  // kept_rectangles: the earlier frames' rectangles marked again (keep_frames);
+  // epipolar_dynamic: the pairs eq. 3 found dynamic;
+  // with rigid_check: rigid_ms,
+  // rigid_prior, rigid_candidates, rigid_inliers, rigid_judged,
+  // rigid_over_threshold, rigid_added, and rigid_<failure> = 1 when it could
+  // not run (no_previous_depth, too_few_points, pnp_failed).
   void process(Context& ctx, StageReport& report) override;
   void reset() override { kept_.clear(); }
 
@@ -81,6 +90,9 @@ class LiStage : public Stage {
   // Steps 4-7 on this frame's clusters: superpixels, planes, boundary labels,
   // rectangles ORed into ctx.dynamic.
   void segment_and_mark(const cv::Mat& grey, Context& ctx, StageReport& report);
+  // Step 2, ours (rigid_check): the pairs against the camera's motion in 3-D
+  // (li_rigidity.h), with SLAM's prediction when it has one.
+  void rigidity_check(Context& ctx, StageReport& report);
   // Steps 1-7 (process without the time and the carried rectangles).
   void detect(Context& ctx, StageReport& report);
   // Step 8: moves the kept rectangles by this frame's flow; drops those the
