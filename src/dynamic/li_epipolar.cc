@@ -162,14 +162,12 @@ LiEpipolarResult li_epipolar_check(const cv::Mat& prev_grey, const cv::Mat& cur_
   }
   r.has_F = true;
   r.F = cv::Matx33d(F.ptr<double>());
-  for (size_t i = 0; i < r.tracks.size(); ++i) {
-    r.tracks[i].prev_u = p[i];
-    r.tracks[i].cur_u = q[i];
-  }
   for (unsigned char m : inlier) r.f_inliers += m ? 1 : 0;
 
   for (size_t i = 0; i < r.tracks.size(); ++i) {
     LiTrack& t = r.tracks[i];
+    t.prev_u = p[i];
+    t.cur_u = q[i];
     if (!(t.disparity > 0.f)) continue;
     // Eq. 1: the epipolar line of the previous point in the current image.
     const cv::Vec3d l = r.F * cv::Vec3d(p[i].x, p[i].y, 1.0);

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <opencv2/calib3d.hpp>
 #include <vector>
 
 #include "view_geometry.h"
@@ -25,13 +24,11 @@ double residual(const map::Calibration& calib, const Eigen::Isometry3d& T, const
 // off by sigma_d either way: the part of the residual that SGBM's disparity
 // error explains (it grows with the camera's translation and the point's
 // distance from the epipole).
+// `at`: X's reprojection under T (in front of the camera).
 double depth_spread(const map::Calibration& calib, const Eigen::Isometry3d& T, const Eigen::Vector3d& X,
-                    double sigma_d) {
+                    const Eigen::Vector2d& at, double sigma_d) {
   if (!(sigma_d > 0) || !(calib.bf > 0)) return 0;
   const double d = calib.bf / X.z();
-  const Eigen::Vector3d Y = T * X;
-  if (!(Y.z() > 1e-6)) return 0;
-  const Eigen::Vector2d at = calib.project(Y);
   double spread = 0;
   for (double dd : {d - sigma_d, d + sigma_d}) {
     if (!(dd > 0)) continue;
@@ -88,24 +85,10 @@ LiRigidityResult li_rigidity_check(LiEpipolarResult& e, const cv::Mat& prev_dept
     return r;
   }
   try {
-    const cv::Matx33d K(calib.fx, 0, calib.cx, 0, calib.fy, calib.cy, 0, 0, 1);
-    cv::Vec3d rvec, tvec;
     std::vector<int> inl;
-    const bool ok = cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false, o.rigid_ransac_iterations,
-                                       static_cast<float>(o.rigid_threshold_px), 0.99, inl, cv::SOLVEPNP_EPNP);
-    if (!ok || static_cast<int>(inl.size()) < o.min_points) {
-      r.failure = "pnp_failed";
-      return r;
-    }
-    std::vector<cv::Point3f> obj_in;
-    std::vector<cv::Point2f> img_in;
-    for (int k : inl) {
-      obj_in.push_back(object[k]);
-      img_in.push_back(image[k]);
-    }
-    cv::solvePnPRefineLM(obj_in, img_in, K, cv::noArray(), rvec, tvec);
-    r.T_cur_prev = view::isometry(rvec, tvec);
-    if (!r.T_cur_prev.matrix().allFinite()) {
+    if (!view::pnp_ransac_refined(object, image, calib, o.rigid_ransac_iterations,
+                                  static_cast<float>(o.rigid_threshold_px), 0.99, o.min_points, inl, r.T_cur_prev) ||
+        !r.T_cur_prev.matrix().allFinite()) {
       r.failure = "pnp_failed";
       return r;
     }
@@ -122,9 +105,10 @@ LiRigidityResult li_rigidity_check(LiEpipolarResult& e, const cv::Mat& prev_dept
     LiTrack& t = e.tracks[which[k]];
     const Eigen::Vector3d Y = r.T_cur_prev * X[k];
     if (!(Y.z() > 1e-6)) continue;
-    offset[k] = Eigen::Vector2d(t.cur_u.x, t.cur_u.y) - calib.project(Y);
+    const Eigen::Vector2d at = calib.project(Y);
+    offset[k] = Eigen::Vector2d(t.cur_u.x, t.cur_u.y) - at;
     t.rigid_residual = offset[k].norm();
-    t.rigid_threshold = o.rigid_threshold_px + depth_spread(calib, r.T_cur_prev, X[k], o.rigid_disparity_sigma_px);
+    t.rigid_threshold = o.rigid_threshold_px + depth_spread(calib, r.T_cur_prev, X[k], at, o.rigid_disparity_sigma_px);
     ++r.judged;
     if (t.rigid_residual > t.rigid_threshold && !t.dynamic) flagged.push_back(static_cast<int>(k));
   }

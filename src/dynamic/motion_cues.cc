@@ -226,14 +226,10 @@ Flow track_forward_backward(const std::vector<cv::Mat>& a, const std::vector<cv:
   return f;
 }
 
-cv::Matx33d camera_matrix(const map::Calibration& c) {
-  return cv::Matx33d(c.fx, 0, c.cx, 0, c.fy, c.cy, 0, 0, 1);
-}
-
 std::vector<cv::Point2f> undistorted(const std::vector<cv::Point2f>& px, const map::Calibration& c) {
   if (c.dist.empty() || px.empty()) return px;
   std::vector<cv::Point2f> out;
-  const cv::Matx33d K = camera_matrix(c);
+  const cv::Matx33d K = view::camera_matrix(c);
   cv::undistortPoints(px, out, K, c.dist, cv::noArray(), K);
   return out;
 }
@@ -474,7 +470,6 @@ EgoMotion estimate_ego_motion(const std::vector<TrackedPoint>& points, const map
   const int min_points = std::max(o.min_ego_points, 8);  // 8: the fundamental matrix needs them
   if (static_cast<int>(idx.size()) < min_points) return e;
 
-  const cv::Matx33d K = camera_matrix(calib);
   std::vector<unsigned char> pnp_inlier(points.size(), 0), f_inlier(points.size(), 0);
   bool pose_ok = false;
   int pose_inliers = 0, f_inliers = 0;
@@ -495,30 +490,12 @@ EgoMotion estimate_ego_motion(const std::vector<TrackedPoint>& points, const map
         which.push_back(idx[k]);
       }
       if (static_cast<int>(object.size()) >= min_points) {
-        cv::Vec3d rvec, tvec;
         std::vector<int> inl;
         const float threshold = static_cast<float>(o.ransac_reprojection_px);
-        // EPnP for the samples and for the final fit on all inliers, then
-        // Levenberg-Marquardt from that fit. (With the default flag OpenCV
-        // refits the inliers by its iterative solver started from a DLT or
-        // homography guess, not from the RANSAC model; on rendered rooms that
-        // converged to poses metres or kilometres off, with every point behind
-        // the camera, while still reporting all the inliers.)
-        const bool ok = cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false,
-                                           std::max(o.ransac_iterations, 1), threshold,
-                                           std::clamp(o.ransac_confidence, 0.0, 1.0), inl, cv::SOLVEPNP_EPNP);
         Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-        if (ok && static_cast<int>(inl.size()) >= min_points) {
-          std::vector<cv::Point3f> obj_in;
-          std::vector<cv::Point2f> img_in;
-          for (int k : inl) {
-            obj_in.push_back(object[k]);
-            img_in.push_back(image[k]);
-          }
-          cv::solvePnPRefineLM(obj_in, img_in, K, cv::noArray(), rvec, tvec);
-          T = view::isometry(rvec, tvec);
-          inl = pnp_inliers(object, image, calib, T, threshold);
-        }
+        const bool ok = view::pnp_ransac_refined(object, image, calib, std::max(o.ransac_iterations, 1), threshold,
+                                                 std::clamp(o.ransac_confidence, 0.0, 1.0), min_points, inl, T);
+        if (ok) inl = pnp_inliers(object, image, calib, T, threshold);
         if (ok && static_cast<int>(inl.size()) >= min_points) {
           e.T_cur_prev = T;
           for (int k : inl) pnp_inlier[which[k]] = 1;

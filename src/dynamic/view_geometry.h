@@ -30,6 +30,40 @@ inline Eigen::Isometry3d isometry(const cv::Vec3d& rvec, const cv::Vec3d& tvec) 
   return T;
 }
 
+// The pinhole matrix of the tracked image.
+inline cv::Matx33d camera_matrix(const map::Calibration& c) {
+  return cv::Matx33d(c.fx, 0, c.cx, 0, c.fy, c.cy, 0, 0, 1);
+}
+
+// T_cur_prev from points of the previous camera (`object`) seen at `image`
+// (undistorted pixels of the current one): solvePnPRansac with EPnP for the
+// samples and for the final fit on all inliers (within `threshold` px), then
+// Levenberg-Marquardt from that fit on them. (With the default flag OpenCV
+// refits the inliers by its iterative solver started from a DLT or
+// homography guess, not from the RANSAC model; on rendered rooms that
+// converged to poses metres or kilometres off, with every point behind the
+// camera, while still reporting all the inliers.) False, T and `inliers` as
+// RANSAC left them, when RANSAC fails or keeps fewer than min_inliers. May
+// throw cv::Exception.
+inline bool pnp_ransac_refined(const std::vector<cv::Point3f>& object, const std::vector<cv::Point2f>& image,
+                               const map::Calibration& calib, int iterations, float threshold, double confidence,
+                               int min_inliers, std::vector<int>& inliers, Eigen::Isometry3d& T) {
+  const cv::Matx33d K = camera_matrix(calib);
+  cv::Vec3d rvec, tvec;
+  const bool ok = cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false, iterations, threshold,
+                                     confidence, inliers, cv::SOLVEPNP_EPNP);
+  if (!ok || static_cast<int>(inliers.size()) < min_inliers) return false;
+  std::vector<cv::Point3f> obj_in;
+  std::vector<cv::Point2f> img_in;
+  for (int k : inliers) {
+    obj_in.push_back(object[k]);
+    img_in.push_back(image[k]);
+  }
+  cv::solvePnPRefineLM(obj_in, img_in, K, cv::noArray(), rvec, tvec);
+  T = isometry(rvec, tvec);
+  return true;
+}
+
 inline bool inside(const cv::Point2f& p, const cv::Size& size, int border = 0) {
   return std::isfinite(p.x) && std::isfinite(p.y) && p.x >= border && p.y >= border &&
          p.x <= size.width - 1 - border && p.y <= size.height - 1 - border;
