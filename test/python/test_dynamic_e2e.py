@@ -115,7 +115,8 @@ STAGES = {
     "stdyn": ("stereo", "Dynamic.stages: [semantic, stdyn]\n" + SEMANTIC_CANDIDATES
               + "Dynamic.stdyn: {f_exclude_candidates: 1, f_refine_on_inliers: 1, f_ransac_threshold_px: 1.0, "
                 "min_dynamic_ratio: 0.1}\n", 0.9, 0.85),
-    "li": ("stereo", "Dynamic.stages: [li]\nDynamic.li: {keep_frames: 10, rigid_check: 1}\n", 0.75, 0.9),
+    "li": ("stereo", "Dynamic.stages: [li]\nDynamic.li: {keep_frames: 10, rigid_check: 1, "
+           "lk_forward_backward_max: 3}\n", 0.75, 0.9),
 }
 
 
@@ -131,7 +132,7 @@ def test_geometric_stage_precision_and_recall(tmp_path, synth_scenes, stage):
     print(f"{stage}: precision {precision:.3f} recall {recall:.3f} over {frames} frames; recall persons "
           f"{by_class[PERSON]:.3f} vehicle {by_class[CAR]:.3f}")
     assert precision >= least_precision and recall >= least_recall, (stage, precision, recall)
-    if stage == "li":  # measured 0.994 / 0.944 (the vehicle 0.77 without rigid_check)
+    if stage == "li":  # measured 0.994 / 0.935 (the vehicle 0.77 without rigid_check)
         assert by_class[PERSON] >= 0.9 and by_class[CAR] >= 0.9, by_class
     assert stats["dynamic_filter"]["stage_failures"] == 0
 
@@ -188,10 +189,29 @@ def test_li_without_semantic_input_within_1_5x(tmp_path, synth_seeds):
         assert li["tracked_frames"] == static["tracked_frames"], seed
         ratios.append(li["ate"]["rmse"] / static["ate"]["rmse"])
     print("li / static, seeds 0-2:", [round(r, 2) for r in ratios])
-    # Measured 1.96 / 1.39 / 0.99 (median 1.39; seeds 0-11 median 1.28). Without
-    # the preset's rigid_check 2.26 / 2.78 / 1.95; the paper's method alone
-    # (neither addition) 2.9x on seed 0.
+    # Measured 2.20 / 1.40 / 1.17 (median 1.40; seeds 0-11 median 1.32); 1.96 /
+    # 1.39 / 0.99 without the preset's backward LK check. Without its
+    # rigid_check 2.26 / 2.78 / 1.95; the paper's method alone (no addition)
+    # 2.9x on seed 0.
     assert float(np.median(ratios)) <= 1.5
+
+
+def test_li_on_a_static_street_marks_almost_nothing(tmp_path, data):
+    """KITTI 06 has no movers in its 51 frames: li must leave the street to
+    tracking. Without the preset's backward LK check, a quarter of the LK
+    pairs there are mis-tracks that eq. 3 marks, and the kept rectangles
+    covered 35-59 % of the image (median dynamic keypoints 38 %, ATE
+    0.077-0.088 m against off's 0.050)."""
+    stats = run_dataset(RunOptions(kind="kitti", path=str(data / "kitti" / "sequences" / "06"),
+                                   sensor="stereo", out=str(tmp_path / "li"), progress=False,
+                                   dynamic="li"))
+    summary = stats["dynamic_filter"]["summary"]
+    print("li on KITTI 06: dynamic fraction median", summary["dynamic_fraction_median"],
+          "ATE", stats["ate"]["rmse"])
+    assert stats["tracked_frames"] == 51
+    # Measured: median 0.0 of the keypoints, ATE 0.057 m.
+    assert summary["dynamic_fraction_median"] <= 0.05
+    assert stats["ate"]["rmse"] <= 0.07
 
 
 def test_an_epipolar_check_alone_cannot_reach_1_5x_here(tmp_path, synth_scenes):

@@ -46,8 +46,10 @@ struct LiOptions {
   int lk_levels = 3;
   // Ours, off by default as in the paper: track the current point back and
   // drop the pair when it lands further than this (px) from where it started.
-  // Measured on three synthetic sequences it removes mis-tracks but also
-  // points on the movers, and lowers the persons' recall (0.79 -> 0.73).
+  // Measured on three synthetic sequences (before the rigidity check) it
+  // removes mis-tracks but also points on the movers, and lowers the persons'
+  // recall (0.79 -> 0.73) at 1 px. The li preset sets 3 px: on KITTI 06 a
+  // quarter of the pairs are mis-tracks that eq. 3 would mark (config/dynamic/li.yaml).
   double lk_forward_backward_max = 0.0;
 
   // --- Fundamental matrix, "9-point algorithm ... refined by RANSAC" (Sec.
