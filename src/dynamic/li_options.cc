@@ -61,6 +61,9 @@ void LiOptions::read(const cv::FileNode& node) {
   read_option(node, "lambda_hinge", lambda_hinge);
   read_option(node, "lambda_pen", lambda_pen);
   read_option(node, "min_hit_directions", min_hit_directions);
+  read_option(node, "foreground_only", foreground_only);
+  read_option(node, "foreground_margin_px", foreground_margin_px);
+  read_option(node, "foreground_band_px", foreground_band_px);
   read_option(node, "keep_frames", keep_frames);
   read_option(node, "keep_covered_fraction", keep_covered_fraction);
   read_option(node, "keep_min_hits", keep_min_hits);
@@ -122,6 +125,8 @@ void LiOptions::validate() const {
   c.non_negative("lambda_pen", lambda_pen, "no penalty");
   c.at_least("min_hit_directions", min_hit_directions, 0);
   if (min_hit_directions > 4) c.fail("min_hit_directions", min_hit_directions, "in [0, 4]");
+  c.non_negative("foreground_margin_px", foreground_margin_px, "the object's own disparity");
+  c.at_least("foreground_band_px", foreground_band_px, 0);
   c.at_least("keep_frames", keep_frames, 0);
   c.between("keep_covered_fraction", keep_covered_fraction, 0, 1, true);
   c.at_least("keep_min_hits", keep_min_hits, 1);

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <climits>
 
+#include "dynaorb/dynamic/semantic_stage.h"
+
 namespace dynaorb::dynamic {
 
 std::vector<LiRegion> li_dynamic_rectangles(const std::vector<cv::Point2f>& points,
@@ -50,6 +52,27 @@ std::vector<LiRegion> li_dynamic_rectangles(const std::vector<cv::Point2f>& poin
     out.push_back(reg);
   }
   return out;
+}
+
+void li_mark_region(cv::Mat& mask, const cv::Rect& rect, const cv::Mat& disparity, float object_disparity,
+                    const LiOptions& o) {
+  const cv::Rect r = rect & cv::Rect(0, 0, mask.cols, mask.rows);
+  if (r.area() == 0) return;
+  if (!o.foreground_only || !(object_disparity > 0) || disparity.size() != mask.size() ||
+      disparity.type() != CV_32FC1) {
+    mask(r).setTo(255);
+    return;
+  }
+  const float least = object_disparity - static_cast<float>(o.foreground_margin_px);
+  cv::Mat near(r.size(), CV_8UC1, cv::Scalar(0));
+  for (int y = 0; y < r.height; ++y) {
+    const float* d = disparity.ptr<float>(y + r.y) + r.x;
+    unsigned char* n = near.ptr<unsigned char>(y);
+    for (int x = 0; x < r.width; ++x)
+      if (!(d[x] > 0.f) || d[x] >= least) n[x] = 255;
+  }
+  cv::Mat dst = mask(r);
+  cv::bitwise_or(dst, widen_by_disc(near, o.foreground_band_px), dst);
 }
 
 }  // namespace dynaorb::dynamic

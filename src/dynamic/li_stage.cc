@@ -178,7 +178,8 @@ void LiStage::carry_rectangles(Context& ctx, StageReport& report) {
   }
   const cv::Rect image(0, 0, ctx.dynamic.cols, ctx.dynamic.rows);
   std::vector<KeptRectangle> found;  // this frame's new rectangles
-  for (const cv::Rect& r : last_.rectangles) found.push_back({r & image, 0, 1});
+  for (size_t i = 0; i < last_.rectangles.size(); ++i)
+    found.push_back({last_.rectangles[i] & image, 0, 1, last_.rectangle_disparity[i]});
   std::vector<KeptRectangle> next;
   for (KeptRectangle k : kept_) {
     k.rect += median_flow(k.rect, last_.epipolar.tracks, o_.min_cluster_points);
@@ -192,7 +193,7 @@ void LiStage::carry_rectangles(Context& ctx, StageReport& report) {
         f.hits = std::max(f.hits, k.hits + 1);
     if (covered_share(k.rect, last_.rectangles) >= o_.keep_covered_fraction) continue;  // found anew
     if (++k.age > o_.keep_frames || k.hits < o_.keep_min_hits) continue;
-    ctx.dynamic(k.rect).setTo(255);
+    li_mark_region(ctx.dynamic, k.rect, last_.disparity, k.disparity, o_);
     last_.kept.push_back(k.rect);
     next.push_back(k);
   }
@@ -259,20 +260,29 @@ void LiStage::segment_and_mark(const cv::Mat& grey, Context& ctx, StageReport& r
   t0 = Clock::now();
   last_.regions = li_dynamic_rectangles(dyn_pts, last_.clusters, last_.labels, last_.boundaries, o_);
   int rejected = 0;
-  for (const LiRegion& r : last_.regions) {
+  cv::Mat own(grey.size(), CV_8UC1, cv::Scalar(0));
+  for (size_t c = 0; c < last_.regions.size(); ++c) {
+    const LiRegion& r = last_.regions[c];
     if (!r.dynamic) {
       ++rejected;
       continue;
     }
+    // The disparity of the object's farthest dynamic point: its smallest.
+    float object_disparity = 0;
+    for (int m : last_.clusters[c].members) {
+      if (m < 0 || m >= static_cast<int>(last_.dynamic_tracks.size())) continue;
+      const float d = last_.epipolar.tracks[last_.dynamic_tracks[m]].disparity;
+      if (d > 0 && (object_disparity == 0 || d < object_disparity)) object_disparity = d;
+    }
     last_.rectangles.push_back(r.rect);
-    ctx.dynamic(r.rect & cv::Rect(0, 0, ctx.dynamic.cols, ctx.dynamic.rows)).setTo(255);
+    last_.rectangle_disparity.push_back(object_disparity);
+    li_mark_region(own, r.rect, last_.disparity, object_disparity, o_);
   }
+  cv::bitwise_or(ctx.dynamic, own, ctx.dynamic);
   v["rectangles_ms"] = ms_since(t0);
   v["rectangles"] = static_cast<double>(last_.rectangles.size());
   v["rejected_clusters"] = rejected;
   report.regions = static_cast<int>(last_.rectangles.size());
-  cv::Mat own(grey.size(), CV_8UC1, cv::Scalar(0));
-  for (const cv::Rect& r : last_.rectangles) own(r).setTo(255);
   v["marked_fraction"] = cv::countNonZero(own) / static_cast<double>(grey.total());
 }
 

@@ -30,4 +30,13 @@ std::vector<LiRegion> li_dynamic_rectangles(const std::vector<cv::Point2f>& poin
                                             const cv::Mat& labels, const LiBoundaries& boundaries,
                                             const LiOptions& o);
 
+// Sets `rect` (clipped to the image) in `mask` (CV_8UC1): every pixel, or
+// with o.foreground_only and object_disparity > 0 those whose `disparity`
+// (CV_32FC1, same size, 0 = none) is 0 or at least object_disparity -
+// o.foreground_margin_px, and the rectangle's pixels within
+// o.foreground_band_px of those. object_disparity: the smallest disparity of
+// the object's dynamic points.
+void li_mark_region(cv::Mat& mask, const cv::Rect& rect, const cv::Mat& disparity, float object_disparity,
+                    const LiOptions& o);
+
 }  // namespace dynaorb::dynamic

@@ -54,6 +54,7 @@ struct LiFrameDetail {
   LiBoundaries boundaries;
   std::vector<LiRegion> regions;     // one per cluster
   std::vector<cv::Rect> rectangles;  // the dynamic ones
+  std::vector<float> rectangle_disparity;  // per rectangle, its dynamic points' smallest disparity (0: none)
   std::vector<cv::Rect> kept;        // earlier frames' rectangles carried into this one (keep_frames)
 };
 
@@ -104,6 +105,7 @@ class LiStage : public Stage {
     cv::Rect rect;
     int age = 0;   // frames since a new rectangle last found it
     int hits = 1;  // frames a new rectangle found it in (keep_min_hits)
+    float disparity = 0;  // its object's smallest disparity (foreground_only)
   };
 
   LiOptions o_;

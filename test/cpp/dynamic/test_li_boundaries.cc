@@ -149,5 +149,47 @@ TEST(LiRegions, RaysFromBoxPointsStopAtItsOutline) {
   EXPECT_TRUE(r2[0].rect.empty());
 }
 
+TEST(LiRegions, ForegroundOnlyLeavesTheFartherBackground) {
+  // A 40 x 30 rectangle over an object at disparity 20 (its left half) in
+  // front of a wall at disparity 5 (its right half); a hole without
+  // disparity in the wall part; a floor strip at 19 (as near as the object).
+  cv::Mat disparity(60, 80, CV_32FC1, cv::Scalar(5.f));
+  disparity(cv::Rect(10, 10, 20, 30)).setTo(20.f);
+  disparity(cv::Rect(35, 15, 5, 5)).setTo(0.f);
+  disparity(cv::Rect(30, 35, 20, 5)).setTo(19.f);
+  const cv::Rect rect(10, 10, 40, 30);
+  LiOptions o;
+  cv::Mat paper(disparity.size(), CV_8UC1, cv::Scalar(0));
+  li_mark_region(paper, rect, disparity, 20.f, o);  // off: the whole rectangle, as the paper
+  EXPECT_EQ(cv::countNonZero(paper), rect.area());
+
+  o.foreground_only = true;  // foreground_margin_px 2: disparity >= 18 or none
+  o.foreground_band_px = 0;
+  cv::Mat fg(disparity.size(), CV_8UC1, cv::Scalar(0));
+  li_mark_region(fg, rect, disparity, 20.f, o);
+  EXPECT_EQ(cv::countNonZero(fg(cv::Rect(10, 10, 20, 30))), 20 * 30);  // the object
+  EXPECT_EQ(cv::countNonZero(fg(cv::Rect(35, 15, 5, 5))), 25);         // no disparity: marked
+  EXPECT_EQ(cv::countNonZero(fg(cv::Rect(30, 35, 20, 5))), 100);       // as near as the object
+  EXPECT_EQ(cv::countNonZero(fg), 20 * 30 + 25 + 100);                 // not the wall
+  EXPECT_EQ(cv::countNonZero(fg(cv::Rect(0, 0, 80, 10))), 0);          // nothing outside
+
+  o.foreground_band_px = 3;  // and the wall within 3 px of those, inside the rectangle
+  cv::Mat band(disparity.size(), CV_8UC1, cv::Scalar(0));
+  li_mark_region(band, rect, disparity, 20.f, o);
+  EXPECT_EQ(cv::countNonZero(band(cv::Rect(30, 10, 3, 25))), 3 * 25);  // beside the object
+  EXPECT_EQ(band.at<unsigned char>(25, 35), 0);                         // 6 px from all: not
+  EXPECT_EQ(band.at<unsigned char>(12, 44), 0);
+  EXPECT_EQ(cv::countNonZero(band(cv::Rect(0, 0, 80, 10))), 0);        // still nothing outside
+  EXPECT_GT(cv::countNonZero(band), cv::countNonZero(fg));
+  o.foreground_band_px = 0;
+
+  cv::Mat unknown(disparity.size(), CV_8UC1, cv::Scalar(0));  // no object disparity: the rectangle
+  li_mark_region(unknown, rect, disparity, 0.f, o);
+  EXPECT_EQ(cv::countNonZero(unknown), rect.area());
+  cv::Mat clipped(disparity.size(), CV_8UC1, cv::Scalar(0));  // partly outside the image
+  li_mark_region(clipped, cv::Rect(70, 50, 30, 30), disparity, 20.f, o);
+  EXPECT_EQ(cv::countNonZero(clipped), 0);
+}
+
 }  // namespace
 }  // namespace dynaorb::dynamic
