@@ -227,7 +227,9 @@ TEST(LiOptions, ReadKeepsDefaultsAndRejectsBadValues) {
   for (const char* text : {"li: {keep_frames: -1}", "li: {keep_covered_fraction: 0}",
                            "li: {keep_covered_fraction: 1.5}", "li: {keep_min_hits: 0}", "li: {alpha_epi: .nan}",
                            "li: {beta_epi: .inf}", "li: {t_disp: .nan}", "li: {sgbm_block_size: 4}",
-                           "li: {lk_forward_backward_max: -1}", "li: {lambda_pen: .nan}"}) {
+                           "li: {lk_forward_backward_max: -1}", "li: {lambda_pen: .nan}",
+                           "li: {foreground_margin_px: .nan}", "li: {foreground_margin_px: -2}",
+                           "li: {foreground_band_px: -1}", "li: {foreground_only: maybe}"}) {
     cv::FileStorage f(std::string("%YAML:1.0\n") + text + "\n", cv::FileStorage::READ | cv::FileStorage::MEMORY);
     LiOptions d;
     EXPECT_THROW(d.read(f["li"]), InputError) << text;
