@@ -169,8 +169,8 @@ struct LiOptions {
   // its object's disparity and is cut by each new frame's disparity.
   // Measured (config/dynamic/li.yaml): seed 0 keypoint precision 0.76 ->
   // 0.87 at 15 px; with no band 0.92, but ATE worse (seeds 0-11 li / static
-  // median 1.32 -> 1.43): the background right beside the mover is not
-  // trackable.
+  // median 1.32 -> 1.43): the background right beside a mover does not
+  // track well.
   bool foreground_only = false;
   double foreground_margin_px = 2.0;
   int foreground_band_px = 15;

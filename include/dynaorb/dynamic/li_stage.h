@@ -15,7 +15,8 @@
 //   6. co-planar / hinge / occlusion boundaries (eq. 9-11, li_boundaries.h);
 //   7. a rectangle per object from the occlusion boundaries around its
 //      dynamic points (li_regions.h), ORed into ctx.dynamic: no ORB feature is
-//      extracted inside it (Sec. III-C);
+//      extracted inside it (Sec. III-C); (ours, LiOptions::foreground_only)
+//      only its part as near as the object, and 15 px around that;
 //   8. (ours, LiOptions::keep_frames > 0) the rectangles of the last frames
 //      that the new ones do not cover, moved by the flow, ORed in too.
 // It computes its own motion cues (the paper's FAST + LK), so it asks the
