@@ -45,8 +45,10 @@ std::vector<LiCluster> li_cluster_dynamic_points(const std::vector<cv::Point2f>&
     LiCluster c;
     c.members = std::move(g);
     float x0 = 1e9f, y0 = 1e9f, x1 = -1e9f, y1 = -1e9f;
+    c.min_disparity = disparities[c.members.front()];
     for (int i : c.members) {
       c.mean_disparity += disparities[i];
+      c.min_disparity = std::min(c.min_disparity, disparities[i]);
       x0 = std::min(x0, points[i].x);
       y0 = std::min(y0, points[i].y);
       x1 = std::max(x1, points[i].x);

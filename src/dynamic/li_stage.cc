@@ -267,13 +267,7 @@ void LiStage::segment_and_mark(const cv::Mat& grey, Context& ctx, StageReport& r
       ++rejected;
       continue;
     }
-    // The disparity of the object's farthest dynamic point: its smallest.
-    float object_disparity = 0;
-    for (int m : last_.clusters[c].members) {
-      if (m < 0 || m >= static_cast<int>(last_.dynamic_tracks.size())) continue;
-      const float d = last_.epipolar.tracks[last_.dynamic_tracks[m]].disparity;
-      if (d > 0 && (object_disparity == 0 || d < object_disparity)) object_disparity = d;
-    }
+    const float object_disparity = last_.clusters[c].min_disparity;
     last_.rectangles.push_back(r.rect);
     last_.rectangle_disparity.push_back(object_disparity);
     li_mark_region(own, r.rect, last_.disparity, object_disparity, o_);

@@ -14,6 +14,7 @@ namespace dynaorb::dynamic {
 struct LiCluster {
   std::vector<int> members;  // indices into the points given
   double mean_disparity = 0;
+  float min_disparity = 0;    // of its farthest member
   cv::Rect bounds;           // bounding box of the members' pixels
   cv::Rect roi;              // bounds grown by roi_margin_factor * T_s(mean_disparity), clipped
 };
