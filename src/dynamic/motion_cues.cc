@@ -366,9 +366,14 @@ void detect_corners_ahead(const FrameData& frame, const map::Calibration& calib,
   cache.next_corners_image = grey;
   cache.next_corners = std::async(std::launch::async, [grey, candidates, right, bf, o] {
                          AheadCorners a;
+                         auto t0 = Clock::now();
                          a.corners = detect_corners(grey, o, candidates);
-                         if (!right.empty() && !a.corners.empty())
+                         a.corners_ms = ms_since(t0);
+                         if (!right.empty() && !a.corners.empty()) {
+                           t0 = Clock::now();
                            a.right_depth = stereo_depths(lk_pyramid(grey, o), lk_pyramid(right, o), a.corners, bf, o);
+                           a.stereo_ms = ms_since(t0);
+                         }
                          return a;
                        }).share();
 }
@@ -392,7 +397,10 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
     else detected.corners = detect_corners(prev.grey, o, prev.candidates);
     const std::vector<cv::Point2f>& corners = detected.corners;
     if (corners.empty()) return out;
-    if (cache) cache->ms["corners"] = ms_since(t0);
+    if (cache) {
+      cache->ms["corners"] = ms_since(t0);
+      if (ahead) cache->ms["corners_ahead"] = detected.corners_ms;
+    }
 
     t0 = Clock::now();
     const bool cached = cache && !cache->image.empty() && cache->image.data == prev.grey.data &&
@@ -434,6 +442,7 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
       if (detected.right_depth.size() == corners.size()) {
         // Found with the corners, ahead.
         for (size_t i = 0; i < out.size(); ++i) out[i].prev_depth = detected.right_depth[kept_corner[i]];
+        if (cache) cache->ms["stereo_ahead"] = detected.stereo_ms;
       } else {
         t0 = Clock::now();
         const std::vector<float> depth = stereo_depths(prev_pyramid, lk_pyramid(prev.right, o), kept_prev, calib.bf, o);

@@ -97,6 +97,10 @@ struct MotionCueOptions {
 struct AheadCorners {
   std::vector<cv::Point2f> corners;
   std::vector<float> right_depth;
+  // Their own wall time (ms) on the worker thread: the detection with its
+  // sub-pixel refinement, and the LK into the right image (stereo).
+  double corners_ms = 0;
+  double stereo_ms = 0;
 };
 
 // What track_points keeps from one call to the next, for one set of
@@ -117,7 +121,9 @@ struct MotionCueCache {
   // sub-pixel refinement, or the wait for them when detected ahead),
   // pyramids, flow (LK forward-backward), stereo (LK into the right image;
   // absent when not run in the call: not needed, or done ahead with the
-  // corners).
+  // corners). Corners detected ahead add what they took on the worker
+  // thread, beside the frame before: corners_ahead, and stereo_ahead when
+  // their depths came with them (not part of the call's time, but a core's).
   std::map<std::string, double> ms;
 };
 

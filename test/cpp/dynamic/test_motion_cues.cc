@@ -264,11 +264,17 @@ TEST(MotionCues, CacheGivesTheSamePointsAsWithout) {
     detect_corners_ahead(p.cur, *calib, sensor, o, cache);
     const auto a1 = track_points(p.prev, p.cur, *calib, sensor, o, &cache);
     EXPECT_TRUE(cache.ms.count("corners") && cache.ms.count("flow"));
+    // What the detection ahead took on its thread: more than nothing.
+    ASSERT_TRUE(cache.ms.count("corners_ahead"));
+    EXPECT_GT(cache.ms.at("corners_ahead"), 0.0);
     // Stereo: the depths came with the corners (and are the same, below).
     EXPECT_FALSE(cache.ms.count("stereo"));
+    EXPECT_EQ(cache.ms.count("stereo_ahead"), sensor == Sensor::kStereo ? 1u : 0u);
+    if (sensor == Sensor::kStereo) EXPECT_GT(cache.ms.at("stereo_ahead"), 0.0);
     detect_corners_ahead(third, *calib, sensor, o, cache);
     const auto a2 = track_points(p.cur, third, *calib, sensor, o, &cache);
     const auto a3 = track_points(q.prev, q.cur, *calib, sensor, o, &cache);  // not the cached images
+    EXPECT_FALSE(cache.ms.count("corners_ahead"));  // detected in the call
     ASSERT_GT(a1.size(), 300u);
     EXPECT_TRUE(same_points(a1, track_points(p.prev, p.cur, *calib, sensor, o)));
     EXPECT_TRUE(same_points(a2, track_points(p.cur, third, *calib, sensor, o)));
