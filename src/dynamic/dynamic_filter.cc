@@ -348,7 +348,10 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
           tracked = track_points(*previous, current, *calib_, sensor_, cues, &motion_cue_cache_);
           res.motion_cue_ms = motion_cue_cache_.ms;
           const auto t_ego = Clock::now();
-          ego = estimate_ego_motion(tracked, *calib_, sensor_, cues);
+          // F only where a stage reads it, DM-SLAM's monocular epipolar
+          // check (eq. 9-10), which monocular estimates anyway: for stereo /
+          // RGB-D the stages read T_cur_prev, and STDyn fits its own F.
+          ego = estimate_ego_motion(tracked, *calib_, sensor_, cues, /*with_F=*/false);
           res.motion_cue_ms["ego"] = ms_since(t_ego);
         } catch (const std::exception& e) {  // documented never to throw: a bug, the stages see no cues
           tracked.clear();

@@ -459,7 +459,7 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
 }
 
 EgoMotion estimate_ego_motion(const std::vector<TrackedPoint>& points, const map::Calibration& calib,
-                              Sensor sensor, const MotionCueOptions& o) {
+                              Sensor sensor, const MotionCueOptions& o, bool with_F) {
   EgoMotion e;
   e.F = cv::Matx33d::zeros();
   e.inlier.assign(points.size(), 0);
@@ -520,9 +520,11 @@ EgoMotion estimate_ego_motion(const std::vector<TrackedPoint>& points, const map
     // image areas the static points do not cover, and the epipolar test of
     // DM-SLAM's monocular case then flagged a parked car; USAC's was off by 0.1 px.
     std::vector<unsigned char> mask;
-    const cv::Mat F = cv::findFundamentalMat(prev_u, cur_u, cv::USAC_ACCURATE, o.ransac_reprojection_px,
-                                             std::clamp(o.ransac_confidence, 0.0, 1.0),
-                                             std::max(o.ransac_iterations, 1), mask);
+    const cv::Mat F = with_F || sensor == Sensor::kMono
+                          ? cv::findFundamentalMat(prev_u, cur_u, cv::USAC_ACCURATE, o.ransac_reprojection_px,
+                                                   std::clamp(o.ransac_confidence, 0.0, 1.0),
+                                                   std::max(o.ransac_iterations, 1), mask)
+                          : cv::Mat();
     // The 7-point fallback can return up to three stacked solutions: only a
     // single 3x3 answer is an estimate.
     if (F.rows == 3 && F.cols == 3 && cv::checkRange(F) && mask.size() == idx.size()) {

@@ -175,12 +175,13 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
 // 3.2.3): stereo / RGB-D: solvePnPRansac (EPnP) on the undistorted points with
 // their previous depth, refined by Levenberg-Marquardt on its inliers, then
 // inliers recounted (in front of the camera, within ransac_reprojection_px)
-// -> T_cur_prev; all sensors: F by RANSAC (OpenCV's
-// USAC_ACCURATE) on the undistorted pixels (q^T F p = 0, p previous, q current). valid: the sensor's estimate
-// (T_cur_prev for stereo / RGB-D, F for monocular) is usable; inlier/inliers
-// count the inliers of that estimate. Never throws: too few points or a
-// RANSAC failure give valid = false.
+// -> T_cur_prev; monocular, and the other sensors when with_F: F by RANSAC
+// (OpenCV's USAC_ACCURATE) on the undistorted pixels (q^T F p = 0, p
+// previous, q current; has_F false when not estimated). valid: the sensor's
+// estimate (T_cur_prev for stereo / RGB-D, F for monocular) is usable;
+// inlier/inliers count the inliers of that estimate. Never throws: too few
+// points or a RANSAC failure give valid = false.
 EgoMotion estimate_ego_motion(const std::vector<TrackedPoint>& points, const map::Calibration& calib,
-                              Sensor sensor, const MotionCueOptions& o);
+                              Sensor sensor, const MotionCueOptions& o, bool with_F = true);
 
 }  // namespace dynaorb::dynamic

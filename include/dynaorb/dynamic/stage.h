@@ -69,8 +69,8 @@ struct TrackedPoint {
 struct EgoMotion {
   bool valid = false;
   Eigen::Isometry3d T_cur_prev = Eigen::Isometry3d::Identity();  // (stereo, RGB-D)
-  cv::Matx33d F;              // fundamental matrix prev -> cur, undistorted pixels (all sensors)
-  bool has_F = false;
+  cv::Matx33d F;              // fundamental matrix prev -> cur, undistorted pixels (see has_F)
+  bool has_F = false;         // monocular; stereo / RGB-D only when asked for (estimate_ego_motion)
   int inliers = 0;
   std::vector<unsigned char> inlier;  // per TrackedPoint (1: used and inlier)
 };

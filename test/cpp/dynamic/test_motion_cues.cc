@@ -126,6 +126,15 @@ TEST(MotionCues, RgbdTracksCornersAndRecoversTheCameraMotion) {
   ASSERT_GT(d.size(), 200u);
   EXPECT_LT(median(d), 0.3);
   EXPECT_LT(percentile(d, 0.9), 1.0);
+
+  // Without F (what the filter asks for stereo / RGB-D): the same pose and
+  // inliers, no F.
+  const EgoMotion pose_only = estimate_ego_motion(pts, *calib, Sensor::kRGBD, o, /*with_F=*/false);
+  ASSERT_TRUE(pose_only.valid);
+  EXPECT_FALSE(pose_only.has_F);
+  EXPECT_EQ(pose_only.F, cv::Matx33d::zeros());
+  EXPECT_TRUE(pose_only.T_cur_prev.isApprox(ego.T_cur_prev, 1e-9));
+  EXPECT_EQ(pose_only.inlier, ego.inlier);
 }
 
 TEST(MotionCues, CornersOnDepthEdgesGetNoDepthAndNoCornerIsCountedTwice) {
@@ -296,6 +305,9 @@ TEST(MotionCues, MonocularGivesTheFundamentalMatrixOnly) {
   const auto d = epipolar_errors(ego.F, *calib, p.prev_view);
   EXPECT_LT(median(d), 0.3);
   EXPECT_LT(percentile(d, 0.9), 1.0);
+  // F is monocular's ego-motion: estimated whatever with_F says.
+  const EgoMotion asked_without = estimate_ego_motion(pts, *calib, Sensor::kMono, o, /*with_F=*/false);
+  EXPECT_TRUE(asked_without.valid && asked_without.has_F);
 }
 
 TEST(MotionCues, DistortedImagesAreUndistortedBeforeGeometry) {
