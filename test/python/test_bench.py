@@ -233,6 +233,25 @@ def test_report_renders_from_results(tmp_path):
     assert "| 3.00 (over 10 % vs 100 % of the frames: not comparable) |" in text
 
 
+def test_stage_table_gives_the_filter_worker_apart(tmp_path):
+    def full(run, corners, stereo):
+        worker = {"corners_ahead": corners, **({"stereo_ahead": stereo} if stereo is not None else {})}
+        return {**_record("s:stereo:full", "dynaorb", "full", 0.02, 40.0, run),
+                "dynamic_filter": {"stages": ["semantic", "dm"], "summary": {"worker_ms_median": worker}}}
+
+    # Medians over the runs: corners 14.0 / 16.0 -> 15.0; stereo given by one run only -> 7.0.
+    records = [full(0, 14.0, 7.0), full(1, 16.0, None), _record("s:stereo:off", "dynaorb", "off", 0.02, 30.0)]
+    results = {"suite": "quick", "runs": 2, "records": records, "machine": {"cpus": 2}}
+    (tmp_path / "results.json").write_text(json.dumps(results))
+    text = report.write(report.load(tmp_path), tmp_path).read_text()
+    table = text.split("## Tracking thread stages")[1]
+    header = next(line for line in table.splitlines() if line.startswith("| sequence"))
+    assert header.endswith("| frame_total | corners_ahead (worker) | stereo_ahead (worker) |"), header
+    # Not in the tracking thread's sum: frame_total stays the stages' 40.0.
+    assert "| s | stereo | full | - | - | 20.0 | - | 20.0 | 40.0 | 15.0 | 7.0 |" in table
+    assert "| s | stereo | off | - | - | 15.0 | - | 15.0 | 30.0 | - | - |" in table
+
+
 def test_readme_section_is_replaced(tmp_path):
     text = f"# T\n\nintro\n\n## Results\n\n{readme.BEGIN}\nold numbers\n{readme.END}\n\n## Layout\nrest\n"
     new = readme.replace_section(text, "| new | table |")

@@ -61,9 +61,21 @@ def aggregate(records: list[dict]) -> list[dict]:
             "dynamic_stages": dyn.get("stages") if dyn else None,
             "network_ms_median": _median((r.get("network") or {}).get("inference_ms_median") for r in ok),
             "dynamic_ms_median": (dyn or {}).get("summary", {}).get("stage_ms_median", {}).get("dynamic") if dyn else None,
+            "worker_ms_median": _worker_ms(ok),
             "dynamic_keypoints_median": (dyn or {}).get("summary", {}).get("dynamic_keypoints_median") if dyn else None,
         })
     return rows
+
+
+def _worker_ms(runs: list[dict]) -> dict:
+    """The filter's work beside the stages on its worker thread (part -> ms per
+    frame), medians over the runs of each run's median."""
+    parts = collections.defaultdict(list)
+    for r in runs:
+        summary = (r.get("dynamic_filter") or {}).get("summary") or {}
+        for k, v in (summary.get("worker_ms_median") or {}).items():
+            parts[k].append(v)
+    return {k: statistics.median(v) for k, v in parts.items()}
 
 
 def pairs(rows: list[dict], preset: str = "off") -> list[dict]:
@@ -186,9 +198,13 @@ def stage_table(rows: list[dict]) -> list[str]:
     # The corner detection's own time where it ran beside the filter (not in the stage sum).
     extra += [OVERLAPPED] if any(OVERLAPPED in r["stage_ms_median"] for r in ours) else []
     cols = list(STAGES) + extra + ["frame_total"]
-    return markdown_table(["sequence", "sensor", "preset", *cols],
+    # The filter's worker thread, beside the stages (not in the sum either).
+    worker = sorted({k for r in ours for k in r.get("worker_ms_median") or {}})
+    return markdown_table(["sequence", "sensor", "preset", *cols, *(f"{w} (worker)" for w in worker)],
                           ([r["sequence"], r["sensor"], r["preset"],
-                            *(_f(r["stage_ms_median"].get(c), "{:.1f}", "-") for c in cols)] for r in ours))
+                            *(_f(r["stage_ms_median"].get(c), "{:.1f}", "-") for c in cols),
+                            *(_f((r.get("worker_ms_median") or {}).get(w), "{:.1f}", "-") for w in worker)]
+                           for r in ours))
 
 
 # --- plots ---------------------------------------------------------------------------------------------
@@ -314,7 +330,10 @@ def render(results: dict, out: pathlib.Path, plots: dict | None = None, stages_p
              "loading outside), taken the same way for dynaorb and ORB-SLAM3: the pair table compares those. "
              "Where the dynamic filter runs beside the ORB corner detection (Dynamic.overlap_extraction), "
              "*extract* is what the extraction adds after the filter and *extract_overlapped* the detection's "
-             "own time on its worker thread (not in the sum).",
+             "own time on its worker thread (not in the sum). The motion cues' corners of the next frame "
+             "(goodFeaturesToTrack, cornerSubPix) and, for stereo, their depth by LK into the right image are "
+             "found beside the stages on the filter's worker thread: *corners_ahead (worker)* and "
+             "*stereo_ahead (worker)*, not in the sum; they take the second core from the rest.",
              "- fps: frames over the whole loop's wall time (image loading included). Peak MB: the run's process "
              "(VmHWM of its own address space), for ORB-SLAM3 the worker's python process.",
              "- ATE: evo, SE3 alignment (Sim3 for monocular), RMSE of the position error; RPE per frame.",

@@ -245,12 +245,24 @@ def _median(values):
     return statistics.median(values) if values else None
 
 
+# Per-frame values of work done for the filter on a worker thread, beside the
+# stages (not inside their times): the motion cues' corners of the next
+# frame, detected ahead with their sub-pixel refinement, and their stereo
+# depth. "motion_cues.<part>_ahead_ms" -> "<part>_ahead".
+_WORKER_PREFIX, _WORKER_SUFFIX = "motion_cues.", "_ahead_ms"
+
+
 def _dynamic_summary(per_frame: list[dict]) -> dict:
-    """Medians over the frames the filter ran on."""
+    """Medians over the frames the filter ran on (the worker's over the
+    frames that used its work)."""
     stage_ms = collections.defaultdict(list)
+    worker_ms = collections.defaultdict(list)
     for f in per_frame:
         for k, v in f["stage_ms"].items():
             stage_ms[k].append(v)
+        for k, v in f.get("values", {}).items():
+            if k.startswith(_WORKER_PREFIX) and k.endswith(_WORKER_SUFFIX):
+                worker_ms[k[len(_WORKER_PREFIX):-len("_ms")]].append(v)
     return {
         "frames": len(per_frame),
         "dynamic_keypoints_median": _median([f["dynamic_keypoints"] for f in per_frame]),
@@ -259,6 +271,7 @@ def _dynamic_summary(per_frame: list[dict]) -> dict:
         "dynamic_fraction_mean": (sum(f["dynamic_fraction"] for f in per_frame) / len(per_frame)
                                   if per_frame else None),
         "stage_ms_median": {k: statistics.median(v) for k, v in sorted(stage_ms.items())},
+        "worker_ms_median": {k: statistics.median(v) for k, v in sorted(worker_ms.items())},
     }
 
 
