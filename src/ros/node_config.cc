@@ -2,6 +2,7 @@
 
 #include "dynaorb/dynamic/dynamic_filter.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <sstream>
@@ -59,13 +60,12 @@ void override_settings(const ros::NodeHandle& pnh, Settings& s) {
   read_param(pnh, "ORBextractor/minThFAST", e.min_th_fast);
 }
 
+// Three finite numbers (a translation or roll-pitch-yaw), or `fallback` when
+// not set; InputError naming the parameter otherwise (a NaN would reach TF).
 std::vector<double> triple(const ros::NodeHandle& pnh, const std::string& name, const std::vector<double>& fallback) {
-  std::vector<double> v;
-  if (!pnh.getParam(name, v)) {
-    if (pnh.hasParam(name)) throw InputError("~" + name + " must hold 3 numbers");
-    return fallback;
-  }
-  if (v.size() != 3) throw InputError("~" + name + " must hold 3 numbers");
+  const std::vector<double> v = param_or(pnh, name, fallback);
+  if (v.size() != 3 || !std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); }))
+    throw InputError("~" + name + " must hold 3 finite numbers");
   return v;
 }
 

@@ -65,9 +65,17 @@ class SlamNodeParamsTest(unittest.TestCase):
                              ("_queue_size:=ten", "~queue_size must be an integer"),
                              ("_use_labels:=1", "~use_labels must be true or false"),
                              ("_movable_ids:=person", "~movable_ids must be a list of integers"),
-                             ("_Camera/fx:=wide", "~Camera/fx must be a number")):
+                             ("_Camera/fx:=wide", "~Camera/fx must be a number"),
+                             ("_camera_rpy:=up", "~camera_rpy must be a list of numbers")):
             with self.subTest(arg=arg):
                 self.assert_refused(self.run_node("refuse_type", [arg]), message)
+
+    def test_camera_offset_needs_three_finite_numbers(self):
+        for key, value in (("camera_xyz", [0.1, 0.0]), ("camera_rpy", [0.0, float("nan"), 0.0]),
+                           ("camera_xyz", [0.0, float("inf"), 0.0])):
+            with self.subTest(key=key, value=value):
+                self.assert_refused(self.run_node("refuse_triple", [], {key: value}),
+                                    f"~{key} must hold 3 finite numbers")
 
     def test_octomap_wrong_types_refused(self):
         # roslaunch reads value="-1e9" as the string "-1e9" (no '.'): refused, not ignored.
