@@ -22,6 +22,9 @@
 // then exactly the tangent Jacobian. (The same "lifted Jacobian" convention is common in
 // visual-inertial solvers; it is correct for Ceres' trust-region minimiser, but a numeric
 // GradientChecker on the ambient Jacobian would not agree with it.)
+// Bundle adjustment with stereo observations splits the pose into a rotation block
+// (RotationManifold: the same left perturbation of R, lifted the same way) and a plain
+// translation block, t <- t + v (BaSplitCost; bundle_adjuster.cc says why).
 //
 // Residuals (information = inv_sigma2 * I, as in ORB-SLAM2):
 //   mono:   r = s * ([u v] - [fx x/z + cx, fy y/z + cy]),                 s = sqrt(inv_sigma2)
@@ -130,6 +133,50 @@ class PoseManifold final : public ceres::Manifold {
   }
 };
 
+// Rotation-only block [qx qy qz qw] with the left perturbation q <- Exp(w) * q and the lifted
+// Jacobian [I3; 0] (as PoseManifold). Bundle adjustment gives each pose a rotation block and a
+// plain 3-double translation block (see BaSplitCost).
+class RotationManifold final : public ceres::Manifold {
+ public:
+  int AmbientSize() const override { return 4; }
+  int TangentSize() const override { return 3; }
+
+  bool Plus(const double* x, const double* delta, double* x_plus_delta) const override {
+    Eigen::Map<const Eigen::Quaterniond> q(x);
+    Eigen::Map<Eigen::Quaterniond> q_out(x_plus_delta);
+    q_out = (so3_exp(Eigen::Vector3d(delta[0], delta[1], delta[2])) * q).normalized();
+    return true;
+  }
+
+  bool PlusJacobian(const double* /*x*/, double* jacobian) const override {
+    Eigen::Map<Eigen::Matrix<double, 4, 3, Eigen::RowMajor>> J(jacobian);
+    J.setZero();
+    J.topRows<3>().setIdentity();
+    return true;
+  }
+
+  bool RightMultiplyByPlusJacobian(const double* /*x*/, const int num_rows, const double* ambient,
+                                   double* tangent) const override {
+    for (int r = 0; r < num_rows; ++r)
+      for (int c = 0; c < 3; ++c) tangent[r * 3 + c] = ambient[r * 4 + c];
+    return true;
+  }
+
+  bool Minus(const double* y, const double* x, double* y_minus_x) const override {
+    Eigen::Map<const Eigen::Quaterniond> qy(y), qx(x);
+    const Eigen::Vector3d w = so3_log((qy * qx.conjugate()).normalized());
+    for (int i = 0; i < 3; ++i) y_minus_x[i] = w[i];
+    return true;
+  }
+
+  bool MinusJacobian(const double* /*x*/, double* jacobian) const override {
+    Eigen::Map<Eigen::Matrix<double, 3, 4, Eigen::RowMajor>> J(jacobian);
+    J.setZero();
+    J.leftCols<3>().setIdentity();
+    return true;
+  }
+};
+
 // ---------------------------------------------------------------- residuals
 // Weighted residual r (N = 2 mono, 3 stereo) of one observation of the camera-frame point Xc and,
 // if P is given, dr/dXc (N x 3).
@@ -228,7 +275,8 @@ class PoseOnlyCost final : public ceres::SizedCostFunction<N, 7> {
   double s_;  // sqrt(inv_sigma2)
 };
 
-// Bundle-adjustment cost: pose block (7) and point block (3).
+// Bundle-adjustment cost of a problem with only monocular observations (N = 2): pose block (7)
+// and point block (3). Problems with stereo observations use BaSplitCost.
 template <int N>
 class BaCost final : public ceres::SizedCostFunction<N, 7, 3> {
  public:
@@ -250,6 +298,63 @@ class BaCost final : public ceres::SizedCostFunction<N, 7, 3> {
       // dXc/dXw = R.
       Eigen::Map<Eigen::Matrix<double, N, 3, Eigen::RowMajor>> Jp(jacobians[1]);
       Jp.noalias() = dr_dXc * R;
+    }
+    return true;
+  }
+
+ private:
+  Intrinsics K_;
+  Observation obs_;
+  double s_;  // sqrt(inv_sigma2)
+};
+
+// Bundle-adjustment cost on a split pose: rotation block (4, RotationManifold), translation block
+// (3, plain) and point block (3), with R residual rows of which the observation fills N (N = 2
+// mono, 3 stereo; rows N..R-1 are zero with zero Jacobians, so they change neither the cost nor
+// the normal equations). Every residual block of a problem then has the same number of rows and
+// every camera block 3 tangent dimensions, which lets Ceres' Schur eliminator use its
+// fixed-size <2, 3, 3> or <3, 3, 3> kernels; a mix of 2- and 3-row residuals or 6-dimensional
+// pose blocks alongside 3-row ones (no <3, 3, 6> kernel) falls back to its dynamic-size code,
+// which took most of local BA's time.
+// Xc = R * Xw + t; with R <- Exp(w) R and t <- t + v: dXc/dw = -[R * Xw]x, dXc/dv = I.
+template <int R, int N>
+class BaSplitCost final : public ceres::SizedCostFunction<R, 4, 3, 3> {
+  static_assert(N <= R, "the observation has at most R rows");
+
+ public:
+  BaSplitCost(const Intrinsics& K, const Observation& obs)
+      : K_(K), obs_(obs), s_(std::sqrt(obs.inv_sigma2)) {}
+
+  bool Evaluate(double const* const* params, double* residuals, double** jacobians) const override {
+    const Eigen::Matrix3d Rm = Eigen::Map<const Eigen::Quaterniond>(params[0]).toRotationMatrix();
+    const Eigen::Vector3d Xr = Rm * Eigen::Map<const Eigen::Vector3d>(params[2]);
+    const Eigen::Vector3d Xc = Xr + Eigen::Map<const Eigen::Vector3d>(params[1]);
+    for (int i = N; i < R; ++i) residuals[i] = 0;
+    if (!jacobians) {
+      reprojection_residual<N>(K_, obs_, s_, Xc, residuals, nullptr);
+      return true;
+    }
+    Eigen::Matrix<double, N, 3> dr_dXc;
+    reprojection_residual<N>(K_, obs_, s_, Xc, residuals, &dr_dXc);
+    if (jacobians[0]) {
+      Eigen::Map<Eigen::Matrix<double, R, 4, Eigen::RowMajor>> J(jacobians[0]);
+      J.setZero();
+      for (int i = 0; i < N; ++i) {
+        const double a = dr_dXc(i, 0), b = dr_dXc(i, 1), c = dr_dXc(i, 2);
+        J(i, 0) = -b * Xr.z() + c * Xr.y();
+        J(i, 1) = a * Xr.z() - c * Xr.x();
+        J(i, 2) = -a * Xr.y() + b * Xr.x();
+      }
+    }
+    if (jacobians[1]) {
+      Eigen::Map<Eigen::Matrix<double, R, 3, Eigen::RowMajor>> J(jacobians[1]);
+      J.setZero();
+      J.template topRows<N>() = dr_dXc;
+    }
+    if (jacobians[2]) {
+      Eigen::Map<Eigen::Matrix<double, R, 3, Eigen::RowMajor>> J(jacobians[2]);
+      J.setZero();
+      J.template topRows<N>().noalias() = dr_dXc * Rm;
     }
     return true;
   }
