@@ -288,9 +288,32 @@ std::vector<std::pair<int, int>> Matcher::search_for_triangulation(const KeyFram
       for (const unsigned i : node1) match_one(static_cast<int>(i), node2);
     });
   } else {
-    std::vector<int> all2(f2.size());
-    for (int j = 0; j < f2.size(); ++j) all2[j] = j;
-    for (int i = 0; i < f1.size(); ++i) match_one(i, all2);
+    // Every pair, but first narrowed to the kf2 keypoints within match_one's epipolar distance
+    // (the same expression, so the same pairs pass): most fail it, and the test is a few
+    // flops against a descriptor distance. Keypoints with a map point are never candidates.
+    std::vector<int> free2;
+    std::vector<double> x2, y2, limit2;
+    for (int j = 0; j < f2.size(); ++j) {
+      if (kf2.point(j)) continue;
+      const cv::KeyPoint& k2 = f2.keys_un[j];
+      free2.push_back(j);
+      x2.push_back(k2.pt.x);
+      y2.push_back(k2.pt.y);
+      limit2.push_back(3.84 * s.sigma2[k2.octave]);
+    }
+    std::vector<int> near_line;
+    for (int i = 0; i < f1.size(); ++i) {
+      if (kf1.point(i)) continue;
+      const cv::KeyPoint& k1 = f1.keys_un[i];
+      const Eigen::Vector3d line = Eigen::Vector3d(k1.pt.x, k1.pt.y, 1.0).transpose() * F12;
+      const double norm2 = line.x() * line.x() + line.y() * line.y();
+      near_line.clear();
+      for (size_t k = 0; k < free2.size(); ++k) {
+        const double num = line.x() * x2[k] + line.y() * y2[k] + line.z();
+        if (!(num * num / norm2 >= limit2[k])) near_line.push_back(free2[k]);
+      }
+      match_one(i, near_line);
+    }
   }
   if (o_.check_orientation)
     for (int i : hist.rejected()) match12[i] = -1;

@@ -4,12 +4,15 @@
 // with bags of words only keypoints under the same vocabulary node are
 // compared. The pairs lie on their epipolar lines, agree with the stereo
 // depth of the first keyframe as often as the exhaustive search's do, and
-// are found with a small share of its descriptor comparisons.
+// are found with a small share of its descriptor comparisons. The exhaustive
+// search, which narrows the pairs to the epipolar band before comparing
+// descriptors, still returns each keypoint's best candidate in that band.
 #include <gtest/gtest.h>
 
 #include <chrono>
 #include <map>
 
+#include "dynaorb/match/hamming.h"
 #include "dynaorb/match/matcher.h"
 #include "place_test_util.h"
 
@@ -74,6 +77,47 @@ TEST(SearchForTriangulation, BagOfWordsPairsAreAsRightAsTheExhaustiveOnes) {
   // A vocabulary node hides some pairs, not most.
   EXPECT_GE(bow.pairs, all.pairs / 3);
   EXPECT_LE(bow.pairs, all.pairs);
+}
+
+// Each exhaustive pair (i1, i2) is i1's best candidate: no kf2 keypoint that
+// passes the same tests (unmatched, within the epipolar distance of its
+// octave, not a monocular pair near the epipole) is closer in descriptor
+// space. A narrowing that dropped candidates would break this.
+TEST(SearchForTriangulation, ExhaustivePairsAreTheBestInTheirEpipolarBand) {
+  REQUIRE_PLACE_DATA();
+  const auto kf1 = bare_keyframe(0, false), kf2 = bare_keyframe(2, false);
+  const match::Matcher matcher;
+  const Eigen::Matrix3d F12 = match::Matcher::fundamental(*kf1, *kf2);
+  const auto pairs = matcher.search_for_triangulation(*kf1, *kf2, F12, false);
+  ASSERT_GT(pairs.size(), 200u);
+  const map::Features& f1 = kf1->f();
+  const map::Features& f2 = kf2->f();
+  const map::ScalePyramid& sp = kf1->calib().scale;
+  const Eigen::Vector3d c1_in_2 = kf2->T_cw() * kf1->center();
+  const Eigen::Vector2d ep = kf2->calib().project(c1_in_2);
+  auto candidate = [&](int i1, int j) {
+    const cv::KeyPoint& k1 = f1.keys_un[i1];
+    const cv::KeyPoint& k2 = f2.keys_un[j];
+    const Eigen::Vector3d line = Eigen::Vector3d(k1.pt.x, k1.pt.y, 1.0).transpose() * F12;
+    const double num = line.x() * k2.pt.x + line.y() * k2.pt.y + line.z();
+    if (num * num / (line.x() * line.x() + line.y() * line.y()) >= 3.84 * sp.sigma2[k2.octave]) return false;
+    if (f1.u_right[i1] < 0 && f2.u_right[j] < 0 && c1_in_2.z() > 0 &&
+        (ep - Eigen::Vector2d(k2.pt.x, k2.pt.y)).squaredNorm() < 100 * sp.scale[k2.octave])
+      return false;
+    return true;
+  };
+  int checked = 0;
+  for (const auto& [i1, i2] : pairs) {
+    ASSERT_TRUE(candidate(i1, i2)) << i1 << " -> " << i2;
+    const int d = match::hamming(f1.descriptor(i1), f2.descriptor(i2));
+    EXPECT_LE(d, match::MatcherOptions{}.th_low);
+    for (int j = 0; j < f2.size(); ++j) {
+      if (j == i2 || !candidate(i1, j)) continue;
+      EXPECT_GE(match::hamming(f1.descriptor(i1), f2.descriptor(j)), d) << i1 << ": " << j << " beats " << i2;
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 1000);  // the band holds other candidates to beat
 }
 
 TEST(SearchForTriangulation, KeypointsWithMapPointsAreLeftOut) {
