@@ -8,6 +8,7 @@
 
 #include "dynaorb/map/point_view.h"
 #include "dynaorb/match/hamming.h"
+#include "epipolar_band.h"
 #include "rotation_histogram.h"
 
 namespace dynaorb::match {
@@ -289,29 +290,21 @@ std::vector<std::pair<int, int>> Matcher::search_for_triangulation(const KeyFram
     });
   } else {
     // Every pair, but first narrowed to the kf2 keypoints within match_one's epipolar distance
-    // (the same expression, so the same pairs pass): most fail it, and the test is a few
-    // flops against a descriptor distance. Keypoints with a map point are never candidates.
-    std::vector<int> free2;
-    std::vector<double> x2, y2, limit2;
+    // by EpipolarBand (the same test, so the same pairs pass, found without testing them all):
+    // the band holds a few percent of the keypoints, and its test is a few flops against a
+    // descriptor distance. Keypoints with a map point are never candidates.
+    std::vector<EpipolarBand::Point> free2;
     for (int j = 0; j < f2.size(); ++j) {
       if (kf2.point(j)) continue;
       const cv::KeyPoint& k2 = f2.keys_un[j];
-      free2.push_back(j);
-      x2.push_back(k2.pt.x);
-      y2.push_back(k2.pt.y);
-      limit2.push_back(3.84 * s.sigma2[k2.octave]);
+      free2.push_back({k2.pt.x, k2.pt.y, 3.84 * s.sigma2[k2.octave], j});
     }
+    const EpipolarBand band(std::move(free2));
     std::vector<int> near_line;
     for (int i = 0; i < f1.size(); ++i) {
       if (kf1.point(i)) continue;
       const cv::KeyPoint& k1 = f1.keys_un[i];
-      const Eigen::Vector3d line = Eigen::Vector3d(k1.pt.x, k1.pt.y, 1.0).transpose() * F12;
-      const double norm2 = line.x() * line.x() + line.y() * line.y();
-      near_line.clear();
-      for (size_t k = 0; k < free2.size(); ++k) {
-        const double num = line.x() * x2[k] + line.y() * y2[k] + line.z();
-        if (!(num * num / norm2 >= limit2[k])) near_line.push_back(free2[k]);
-      }
+      band.near(Eigen::Vector3d(k1.pt.x, k1.pt.y, 1.0).transpose() * F12, &near_line);
       match_one(i, near_line);
     }
   }
