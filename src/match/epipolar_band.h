@@ -26,6 +26,7 @@ class EpipolarBand {
   explicit EpipolarBand(std::vector<Point> points, int strips = 16);
 
   // Ids of the points near `line`, ascending by their index in the constructor's vector.
+  // Uses a scratch buffer of the object: one query at a time per object.
   void near(const Eigen::Vector3d& line, std::vector<int>* ids) const;
 
  private:
@@ -46,7 +47,7 @@ class EpipolarBand {
   double max_distance_ = 0;  // sqrt of the largest limit2
   Strips by_x_, by_y_;       // strips across x (sorted by y) and across y (sorted by x)
   std::vector<int> unbucketed_;  // points with a non-finite coordinate or limit: always tested
-  mutable std::vector<int> hits_;
+  mutable std::vector<int> hits_;  // near()'s scratch
 };
 
 }  // namespace dynaorb::match

@@ -17,15 +17,16 @@
 // Structure: the points are eliminated first (Schur). Keyframe poses have one of two layouts,
 // chosen per call so that Ceres' Schur eliminator can use one of its fixed-size kernels
 // (<residual rows, point size, camera block size>); without one it runs its dynamic-size code.
-// Measured with callgrind on synchronous runs of the static synthetic sequences, all local BAs of
-// a run: stereo 9.1 -> 7.8 G instructions, RGB-D 15.6 -> 13.6 G, the same ATE to 1e-6 m;
-// monocular with the split layout (<2, 3, 3>) instead: its linear solves 8.4 -> 13.0 G.
 //  - only monocular observations: one 7-double block per keyframe (PoseManifold) and 2-row
 //    residuals, kernel <2, 3, 6>;
 //  - any stereo / RGB-D observation: a rotation block (4, RotationManifold) and a translation
 //    block (3) per keyframe and every residual with 3 rows (a monocular one padded with a zero
 //    row, which changes neither cost nor step), kernel <3, 3, 3>. Ceres has no <3, 3, 6> kernel,
 //    and a mix of 2- and 3-row residuals has none at all.
+// Measured with callgrind on synchronous runs of the static synthetic sequences, all local BAs of
+// a run, against one 7-double block per pose for every sensor: stereo 9.1 -> 7.8 G instructions,
+// RGB-D 15.6 -> 13.6 G, the same ATE to 1e-6 m; monocular with the split layout (<2, 3, 3>)
+// instead of <2, 3, 6>: its linear solves 8.4 -> 13.0 G, so it keeps the single block.
 // Both use analytic Jacobians (reprojection_cost.h). The reduced camera system has 6 * (free
 // keyframes) unknowns: for a local window (tens of keyframes) DENSE_SCHUR is the fastest; above
 // kDenseSchurMaxKeyframes free keyframes a sparse Schur solver is used when Ceres was built with
