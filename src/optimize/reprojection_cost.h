@@ -80,12 +80,41 @@ inline Eigen::Vector3d so3_log(Eigen::Quaterniond q) {
   return 2.0 * std::atan2(sn, q.w()) / sn * q.vec();
 }
 
-// ---------------------------------------------------------------- manifold
-class PoseManifold final : public ceres::Manifold {
+// ---------------------------------------------------------------- manifolds
+// The lifted-Jacobian part shared by the manifolds below (see the file comment): the first
+// kTangent ambient coordinates carry the tangent Jacobian, so PlusJacobian = [I; 0] (row-major
+// kAmbient x kTangent) and MinusJacobian = [I 0].
+template <int kAmbient, int kTangent>
+class LiftedManifold : public ceres::Manifold {
  public:
-  int AmbientSize() const override { return 7; }
-  int TangentSize() const override { return 6; }
+  int AmbientSize() const override { return kAmbient; }
+  int TangentSize() const override { return kTangent; }
 
+  bool PlusJacobian(const double* /*x*/, double* jacobian) const override {
+    Eigen::Map<Eigen::Matrix<double, kAmbient, kTangent, Eigen::RowMajor>> J(jacobian);
+    J.setZero();
+    J.template topRows<kTangent>().setIdentity();
+    return true;
+  }
+
+  bool RightMultiplyByPlusJacobian(const double* /*x*/, const int num_rows, const double* ambient,
+                                   double* tangent) const override {
+    for (int r = 0; r < num_rows; ++r)
+      for (int c = 0; c < kTangent; ++c) tangent[r * kTangent + c] = ambient[r * kAmbient + c];
+    return true;
+  }
+
+  bool MinusJacobian(const double* /*x*/, double* jacobian) const override {
+    Eigen::Map<Eigen::Matrix<double, kTangent, kAmbient, Eigen::RowMajor>> J(jacobian);
+    J.setZero();
+    J.template leftCols<kTangent>().setIdentity();
+    return true;
+  }
+};
+
+// The whole pose [q t], delta = [w, v]: R <- Exp(w) R, t <- Exp(w) t + v.
+class PoseManifold final : public LiftedManifold<7, 6> {
+ public:
   bool Plus(const double* x, const double* delta, double* x_plus_delta) const override {
     const Eigen::Quaterniond dq = so3_exp(Eigen::Vector3d(delta[0], delta[1], delta[2]));
     Eigen::Map<const Eigen::Quaterniond> q(x);
@@ -94,21 +123,6 @@ class PoseManifold final : public ceres::Manifold {
     Eigen::Map<Eigen::Vector3d> t_out(x_plus_delta + 4);
     q_out = (dq * q).normalized();
     t_out = dq * t + Eigen::Vector3d(delta[3], delta[4], delta[5]);
-    return true;
-  }
-
-  // Lifted convention (see the file comment): [I6; 0], row-major 7x6.
-  bool PlusJacobian(const double* /*x*/, double* jacobian) const override {
-    Eigen::Map<Eigen::Matrix<double, 7, 6, Eigen::RowMajor>> J(jacobian);
-    J.setZero();
-    J.topRows<6>().setIdentity();
-    return true;
-  }
-
-  bool RightMultiplyByPlusJacobian(const double* /*x*/, const int num_rows, const double* ambient,
-                                   double* tangent) const override {
-    for (int r = 0; r < num_rows; ++r)
-      for (int c = 0; c < 6; ++c) tangent[r * 6 + c] = ambient[r * 7 + c];
     return true;
   }
 
@@ -124,23 +138,13 @@ class PoseManifold final : public ceres::Manifold {
     }
     return true;
   }
-
-  bool MinusJacobian(const double* /*x*/, double* jacobian) const override {
-    Eigen::Map<Eigen::Matrix<double, 6, 7, Eigen::RowMajor>> J(jacobian);
-    J.setZero();
-    J.leftCols<6>().setIdentity();
-    return true;
-  }
 };
 
-// Rotation-only block [qx qy qz qw] with the left perturbation q <- Exp(w) * q and the lifted
-// Jacobian [I3; 0] (as PoseManifold). Bundle adjustment gives each pose a rotation block and a
-// plain 3-double translation block (see BaSplitCost).
-class RotationManifold final : public ceres::Manifold {
+// Rotation-only block [qx qy qz qw] with the same left perturbation q <- Exp(w) * q. Bundle
+// adjustment with stereo observations gives each pose a rotation block and a plain 3-double
+// translation block (see BaSplitCost).
+class RotationManifold final : public LiftedManifold<4, 3> {
  public:
-  int AmbientSize() const override { return 4; }
-  int TangentSize() const override { return 3; }
-
   bool Plus(const double* x, const double* delta, double* x_plus_delta) const override {
     Eigen::Map<const Eigen::Quaterniond> q(x);
     Eigen::Map<Eigen::Quaterniond> q_out(x_plus_delta);
@@ -148,31 +152,10 @@ class RotationManifold final : public ceres::Manifold {
     return true;
   }
 
-  bool PlusJacobian(const double* /*x*/, double* jacobian) const override {
-    Eigen::Map<Eigen::Matrix<double, 4, 3, Eigen::RowMajor>> J(jacobian);
-    J.setZero();
-    J.topRows<3>().setIdentity();
-    return true;
-  }
-
-  bool RightMultiplyByPlusJacobian(const double* /*x*/, const int num_rows, const double* ambient,
-                                   double* tangent) const override {
-    for (int r = 0; r < num_rows; ++r)
-      for (int c = 0; c < 3; ++c) tangent[r * 3 + c] = ambient[r * 4 + c];
-    return true;
-  }
-
   bool Minus(const double* y, const double* x, double* y_minus_x) const override {
     Eigen::Map<const Eigen::Quaterniond> qy(y), qx(x);
     const Eigen::Vector3d w = so3_log((qy * qx.conjugate()).normalized());
     for (int i = 0; i < 3; ++i) y_minus_x[i] = w[i];
-    return true;
-  }
-
-  bool MinusJacobian(const double* /*x*/, double* jacobian) const override {
-    Eigen::Map<Eigen::Matrix<double, 3, 4, Eigen::RowMajor>> J(jacobian);
-    J.setZero();
-    J.leftCols<3>().setIdentity();
     return true;
   }
 };
