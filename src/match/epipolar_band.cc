@@ -5,11 +5,18 @@
 
 namespace dynaorb::match {
 
+namespace {
+// A point with finite coordinates and limit goes into the strips; any other is tested always.
+bool bucketable(const EpipolarBand::Point& p) {
+  return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.limit2);
+}
+}  // namespace
+
 EpipolarBand::EpipolarBand(std::vector<Point> points, int strips) : points_(std::move(points)) {
   double max_limit2 = 0;
   for (size_t i = 0; i < points_.size(); ++i) {
     const Point& p = points_[i];
-    if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.limit2))
+    if (bucketable(p))
       max_limit2 = std::max(max_limit2, p.limit2);
     else
       unbucketed_.push_back(static_cast<int>(i));  // tested by every query
@@ -25,7 +32,7 @@ EpipolarBand::Strips EpipolarBand::bucket(bool across_x, int n) const {
   auto u_of = [&](const Point& p) { return across_x ? p.x : p.y; };
   double lo = INFINITY, hi = -INFINITY;
   for (const Point& p : points_) {
-    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.limit2)) continue;
+    if (!bucketable(p)) continue;
     lo = std::min(lo, u_of(p));
     hi = std::max(hi, u_of(p));
   }
@@ -34,7 +41,7 @@ EpipolarBand::Strips EpipolarBand::bucket(bool across_x, int n) const {
   st.width = hi > lo ? (hi - lo) / n : 1.0;
   for (size_t i = 0; i < points_.size(); ++i) {
     const Point& p = points_[i];
-    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.limit2)) continue;
+    if (!bucketable(p)) continue;
     const int s = std::clamp(static_cast<int>(std::floor((u_of(p) - lo) / st.width)), 0, n - 1);
     st.strip[s].push_back({across_x ? p.y : p.x, static_cast<int>(i)});
   }
