@@ -212,23 +212,31 @@ inline Eigen::Vector3d transform_point(const double* pose, const Eigen::Vector3d
   return q * Xw + Eigen::Vector3d(pose[4], pose[5], pose[6]);
 }
 
+// Writes the rotation part of row i of a pose Jacobian: dr_dXc.row(i) * (-[X]x), where X is the
+// rotated point (dX/dw = -[X]x for a left update Exp(w) R), into out[0..2].
+// -[X]x = [[0, z, -y], [-z, 0, x], [y, -x, 0]].
+template <int N>
+inline void rotation_jacobian_row(const Eigen::Matrix<double, N, 3>& dr_dXc, int i,
+                                  const Eigen::Vector3d& X, double* out) {
+  const double a = dr_dXc(i, 0), b = dr_dXc(i, 1), c = dr_dXc(i, 2);
+  out[0] = -b * X.z() + c * X.y();
+  out[1] = a * X.z() - c * X.x();
+  out[2] = -a * X.y() + b * X.x();
+}
+
 // Writes the pose Jacobian (tangent [w, v] in the first six columns, last column zero) of a
 // residual whose camera-frame Jacobian is dr_dXc; row-major N x 7. Uses dXc/dw = -[Xc]x,
 // dXc/dv = I.
 template <int N>
 inline void pose_jacobian(const Eigen::Matrix<double, N, 3>& dr_dXc, const Eigen::Vector3d& Xc,
                           double* out) {
-  Eigen::Map<Eigen::Matrix<double, N, 7, Eigen::RowMajor>> J(out);
   for (int i = 0; i < N; ++i) {
-    const double a = dr_dXc(i, 0), b = dr_dXc(i, 1), c = dr_dXc(i, 2);
-    // row * (-[Xc]x), with -[Xc]x = [[0, z, -y], [-z, 0, x], [y, -x, 0]].
-    J(i, 0) = -b * Xc.z() + c * Xc.y();
-    J(i, 1) = a * Xc.z() - c * Xc.x();
-    J(i, 2) = -a * Xc.y() + b * Xc.x();
-    J(i, 3) = a;
-    J(i, 4) = b;
-    J(i, 5) = c;
-    J(i, 6) = 0;
+    double* row = out + 7 * i;
+    rotation_jacobian_row<N>(dr_dXc, i, Xc, row);
+    row[3] = dr_dXc(i, 0);
+    row[4] = dr_dXc(i, 1);
+    row[5] = dr_dXc(i, 2);
+    row[6] = 0;
   }
 }
 
@@ -322,12 +330,7 @@ class BaSplitCost final : public ceres::SizedCostFunction<R, 4, 3, 3> {
     if (jacobians[0]) {
       Eigen::Map<Eigen::Matrix<double, R, 4, Eigen::RowMajor>> J(jacobians[0]);
       J.setZero();
-      for (int i = 0; i < N; ++i) {
-        const double a = dr_dXc(i, 0), b = dr_dXc(i, 1), c = dr_dXc(i, 2);
-        J(i, 0) = -b * Xr.z() + c * Xr.y();
-        J(i, 1) = a * Xr.z() - c * Xr.x();
-        J(i, 2) = -a * Xr.y() + b * Xr.x();
-      }
+      for (int i = 0; i < N; ++i) rotation_jacobian_row<N>(dr_dXc, i, Xr, jacobians[0] + 4 * i);
     }
     if (jacobians[1]) {
       Eigen::Map<Eigen::Matrix<double, R, 3, Eigen::RowMajor>> J(jacobians[1]);
