@@ -112,24 +112,36 @@ class LiftedManifold : public ceres::Manifold {
   }
 };
 
+// The left rotation update both manifolds below use: q_out <- Exp(w) * q (renormalised). Returns
+// Exp(w), for a caller that moves a translation with it.
+inline Eigen::Quaterniond rotate_left(const double* q, const double* w, double* q_out) {
+  using ConstQuat = Eigen::Map<const Eigen::Quaterniond>;
+  const Eigen::Quaterniond dq = so3_exp(Eigen::Vector3d(w[0], w[1], w[2]));
+  Eigen::Map<Eigen::Quaterniond> out(q_out);
+  out = (dq * ConstQuat(q)).normalized();
+  return dq;
+}
+
+// Its inverse: dq = qy * qx^-1 (renormalised), whose Log is the tangent w with qy = Exp(w) * qx.
+inline Eigen::Quaterniond left_difference(const double* qy, const double* qx) {
+  using ConstQuat = Eigen::Map<const Eigen::Quaterniond>;
+  return (ConstQuat(qy) * ConstQuat(qx).conjugate()).normalized();
+}
+
 // The whole pose [q t], delta = [w, v]: R <- Exp(w) R, t <- Exp(w) t + v.
 class PoseManifold final : public LiftedManifold<7, 6> {
  public:
   bool Plus(const double* x, const double* delta, double* x_plus_delta) const override {
-    const Eigen::Quaterniond dq = so3_exp(Eigen::Vector3d(delta[0], delta[1], delta[2]));
-    Eigen::Map<const Eigen::Quaterniond> q(x);
-    Eigen::Map<const Eigen::Vector3d> t(x + 4);
-    Eigen::Map<Eigen::Quaterniond> q_out(x_plus_delta);
+    const Eigen::Quaterniond dq = rotate_left(x, delta, x_plus_delta);
+    Eigen::Map<const Eigen::Vector3d> t(x + 4), v(delta + 3);
     Eigen::Map<Eigen::Vector3d> t_out(x_plus_delta + 4);
-    q_out = (dq * q).normalized();
-    t_out = dq * t + Eigen::Vector3d(delta[3], delta[4], delta[5]);
+    t_out = dq * t + v;
     return true;
   }
 
   bool Minus(const double* y, const double* x, double* y_minus_x) const override {
-    Eigen::Map<const Eigen::Quaterniond> qy(y), qx(x);
+    const Eigen::Quaterniond dq = left_difference(y, x);
     Eigen::Map<const Eigen::Vector3d> ty(y + 4), tx(x + 4);
-    const Eigen::Quaterniond dq = (qy * qx.conjugate()).normalized();
     const Eigen::Vector3d w = so3_log(dq);
     const Eigen::Vector3d v = ty - dq * tx;
     for (int i = 0; i < 3; ++i) {
@@ -146,16 +158,13 @@ class PoseManifold final : public LiftedManifold<7, 6> {
 class RotationManifold final : public LiftedManifold<4, 3> {
  public:
   bool Plus(const double* x, const double* delta, double* x_plus_delta) const override {
-    Eigen::Map<const Eigen::Quaterniond> q(x);
-    Eigen::Map<Eigen::Quaterniond> q_out(x_plus_delta);
-    q_out = (so3_exp(Eigen::Vector3d(delta[0], delta[1], delta[2])) * q).normalized();
+    rotate_left(x, delta, x_plus_delta);
     return true;
   }
 
   bool Minus(const double* y, const double* x, double* y_minus_x) const override {
-    Eigen::Map<const Eigen::Quaterniond> qy(y), qx(x);
-    const Eigen::Vector3d w = so3_log((qy * qx.conjugate()).normalized());
-    for (int i = 0; i < 3; ++i) y_minus_x[i] = w[i];
+    Eigen::Map<Eigen::Vector3d> out(y_minus_x);
+    out = so3_log(left_difference(y, x));
     return true;
   }
 };
