@@ -1,6 +1,6 @@
 #pragma once
 // Turns images into Features: ORB extraction (left and right in parallel for
-// stereo), keypoint undistortion, stereo matching along rectified rows or the
+// stereo, the right image on a HelperThread), keypoint undistortion, stereo matching along rectified rows or the
 // RGB-D virtual right coordinate from depth, and the search grid.
 #include <functional>
 #include <map>
@@ -8,6 +8,7 @@
 #include <opencv2/core.hpp>
 #include <string>
 
+#include "dynaorb/core/helper_thread.h"
 #include "dynaorb/features/orb_extractor.h"
 #include "dynaorb/map/features.h"
 
@@ -79,6 +80,7 @@ class FrameBuilder {
   features::OrbExtractor left_, right_, init_;
   int n_features_;
   double right_budget_max_factor_;
+  HelperThread helper_;  // the right image's extraction, the detection beside the mask
 };
 
 }  // namespace dynaorb::tracking

@@ -1,0 +1,89 @@
+// HelperThread: jobs run on one other thread, in order; a job's exception
+// reaches its get(); destroying a Job waits for it; the job runs with the
+// caller's affinity (the worker is only started off the caller's CPU).
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <stdexcept>
+#include <thread>
+#include <vector>
+
+#include "dynaorb/core/helper_thread.h"
+
+#if defined(__linux__)
+#include <pthread.h>
+#include <sched.h>
+#endif
+
+using dynaorb::HelperThread;
+
+TEST(HelperThread, RunsJobsInSubmissionOrderOnOneOtherThread) {
+  HelperThread helper;
+  std::vector<int> order;
+  std::vector<std::thread::id> ids(3);
+  {
+    std::vector<HelperThread::Job> jobs;
+    for (int i = 0; i < 3; ++i)
+      jobs.push_back(helper.submit([&, i] {
+        order.push_back(i);
+        ids[i] = std::this_thread::get_id();
+      }));
+    for (auto& j : jobs) j.get();
+  }
+  EXPECT_EQ(order, (std::vector<int>{0, 1, 2}));
+  EXPECT_NE(ids[0], std::this_thread::get_id());
+  EXPECT_EQ(ids[0], ids[1]);
+  EXPECT_EQ(ids[1], ids[2]);
+}
+
+TEST(HelperThread, AJobsExceptionReachesItsGetAndTheWorkerGoesOn) {
+  HelperThread helper;
+  HelperThread::Job bad = helper.submit([] { throw std::runtime_error("job failed"); });
+  EXPECT_THROW(bad.get(), std::runtime_error);
+  bool ran = false;
+  helper.submit([&] { ran = true; }).get();
+  EXPECT_TRUE(ran);
+}
+
+TEST(HelperThread, DestroyingAJobWaitsForIt) {
+  HelperThread helper;
+  std::atomic<bool> done{false};
+  {
+    HelperThread::Job job = helper.submit([&] {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      done = true;
+    });
+  }  // e.g. the caller left by an exception before get()
+  EXPECT_TRUE(done);
+}
+
+TEST(HelperThread, DestructionRunsTheJobsAlreadySubmitted) {
+  std::atomic<int> ran{0};
+  {
+    HelperThread helper;
+    for (int i = 0; i < 3; ++i)
+      helper.submit([&] {
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+        ++ran;
+      }).get();
+  }
+  EXPECT_EQ(ran, 3);
+}
+
+#if defined(__linux__)
+// The worker is woken with the caller's CPU out of its affinity; the job
+// itself runs with the caller's whole affinity again.
+TEST(HelperThread, TheJobRunsWithTheCallersAffinity) {
+  cpu_set_t caller;
+  CPU_ZERO(&caller);
+  ASSERT_EQ(::sched_getaffinity(0, sizeof(caller), &caller), 0);
+  HelperThread helper;
+  for (int i = 0; i < 3; ++i) {
+    cpu_set_t seen;
+    CPU_ZERO(&seen);
+    helper.submit([&] { ::pthread_getaffinity_np(::pthread_self(), sizeof(seen), &seen); }).get();
+    EXPECT_TRUE(CPU_EQUAL(&seen, &caller));
+  }
+}
+#endif
