@@ -1,7 +1,8 @@
 #pragma once
 // Turns images into Features: ORB extraction (left and right in parallel for
-// stereo, the right image on a HelperThread), keypoint undistortion, stereo matching along rectified rows or the
-// RGB-D virtual right coordinate from depth, and the search grid.
+// stereo, the right image on a HelperThread), keypoint undistortion, stereo
+// matching along rectified rows or the RGB-D virtual right coordinate from
+// depth, and the search grid.
 #include <functional>
 #include <map>
 #include <memory>
@@ -80,7 +81,7 @@ class FrameBuilder {
   features::OrbExtractor left_, right_, init_;
   int n_features_;
   double right_budget_max_factor_;
-  HelperThread helper_;  // the right image's extraction, the detection beside the mask
+  HelperThread helper_;  // the stereo right image's extraction (or description)
 };
 
 }  // namespace dynaorb::tracking
