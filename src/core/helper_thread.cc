@@ -20,7 +20,13 @@ HelperThread::~HelperThread() {
   thread_.join();
 }
 
-HelperThread::Job HelperThread::submit(std::function<void()> job) {
+HelperThread::Job HelperThread::submit(std::function<void()> job) { return Job(enqueue(std::move(job))); }
+
+// A packaged_task's future does not wait when destroyed (unlike std::async's).
+void HelperThread::post(std::function<void()> job) { enqueue(std::move(job)); }
+
+// Queues `job` and wakes the worker, off the caller's CPU; the job's future.
+std::future<void> HelperThread::enqueue(std::function<void()> job) {
 #if defined(__linux__)
   // Start on a core other than the caller's (see the header); the job then
   // widens the worker's affinity back to the caller's.
@@ -41,7 +47,7 @@ HelperThread::Job HelperThread::submit(std::function<void()> job) {
   }
 #endif
   std::packaged_task<void()> task(std::move(job));
-  Job done(task.get_future());
+  std::future<void> done = task.get_future();
   {
     std::lock_guard<std::mutex> lock(mutex_);
     jobs_.push_back(std::move(task));

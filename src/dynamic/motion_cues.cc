@@ -364,18 +364,31 @@ void detect_corners_ahead(const FrameData& frame, const map::Calibration& calib,
   const cv::Mat right = wants_stereo_depth(frame, calib, sensor) ? frame.right : cv::Mat();
   const double bf = calib.bf;
   cache.next_corners_image = grey;
-  cache.next_corners = std::async(std::launch::async, [grey, candidates, right, bf, o] {
-                         AheadCorners a;
-                         auto t0 = Clock::now();
-                         a.corners = detect_corners(grey, o, candidates);
-                         a.corners_ms = ms_since(t0);
-                         if (!right.empty() && !a.corners.empty()) {
-                           t0 = Clock::now();
-                           a.right_depth = stereo_depths(lk_pyramid(grey, o), lk_pyramid(right, o), a.corners, bf, o);
-                           a.stereo_ms = ms_since(t0);
-                         }
-                         return a;
-                       }).share();
+  // The job owns copies of what it reads (cv::Mat headers share the buffers).
+  auto task = std::make_shared<std::packaged_task<AheadCorners()>>([grey, candidates, right, bf, o] {
+    AheadCorners a;
+    auto t0 = Clock::now();
+    a.corners = detect_corners(grey, o, candidates);
+    a.corners_ms = ms_since(t0);
+    if (!right.empty() && !a.corners.empty()) {
+      t0 = Clock::now();
+      a.right_depth = stereo_depths(lk_pyramid(grey, o), lk_pyramid(right, o), a.corners, bf, o);
+      a.stereo_ms = ms_since(t0);
+    }
+    return a;
+  });
+  cache.next_corners = task->get_future().share();
+  cache.ahead.post([task] { (*task)(); });  // what it throws reaches next_corners
+}
+
+void MotionCueCache::reset() {
+  image = cv::Mat();
+  pyramid.clear();
+  window = 0;
+  levels = -1;
+  corners_image = next_corners_image = cv::Mat();
+  corners = next_corners = std::shared_future<AheadCorners>();
+  ms.clear();
 }
 
 std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& cur,

@@ -25,8 +25,10 @@
 //   synthetic stereo, no movers, off                 13.4 -> 10.4 ms (5 + 5)
 //   synthetic stereo, 3 movers, `full`               29.6 -> 29.7 ms (6 + 6;
 //     both cores already busy: the motion cues' worker)
-// The overlapped detection beside the dynamic filter (mono, RGB-D) stays on
-// std::async: there the helper measured 1.1 ms per frame slower.
+// The motion cues' corners for the next frame are detected on one too
+// (MotionCueCache::ahead). The overlapped detection beside the dynamic
+// filter (mono, RGB-D) stays on std::async: there the helper measured
+// 1.1-1.8 ms per frame slower.
 #include <condition_variable>
 #include <deque>
 #include <functional>
@@ -63,9 +65,14 @@ class HelperThread {
 
   // Runs `job` on the worker; jobs run one at a time, in submission order.
   Job submit(std::function<void()> job);
+  // The same without a Job: the caller learns of the job's end by its own
+  // means (e.g. a std::packaged_task's future), and the job must own what it
+  // reads (captures by value). What it throws is dropped.
+  void post(std::function<void()> job);
 
  private:
   void run();
+  std::future<void> enqueue(std::function<void()> job);
 
   std::mutex mutex_;
   std::condition_variable wake_;

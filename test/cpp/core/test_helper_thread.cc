@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <future>
+#include <memory>
 #include <chrono>
 #include <stdexcept>
 #include <thread>
@@ -87,3 +89,17 @@ TEST(HelperThread, TheJobRunsWithTheCallersAffinity) {
   }
 }
 #endif
+
+// post(): the job runs in order with the others; what it throws is dropped
+// (the caller learns of the end by its own future, here a packaged_task's).
+TEST(HelperThread, PostRunsTheJobAndTheWorkerOutlivesItsException) {
+  HelperThread helper;
+  auto task = std::make_shared<std::packaged_task<int()>>([] { return 7; });
+  std::future<int> result = task->get_future();
+  helper.post([] { throw std::runtime_error("dropped"); });
+  helper.post([task] { (*task)(); });
+  EXPECT_EQ(result.get(), 7);
+  bool ran = false;
+  helper.submit([&] { ran = true; }).get();
+  EXPECT_TRUE(ran);
+}
