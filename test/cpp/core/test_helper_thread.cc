@@ -1,12 +1,14 @@
 // HelperThread: jobs run on one other thread, in order; a job's exception
-// reaches its get(); destroying a Job waits for it; the job runs with the
-// caller's affinity (the worker is only started off the caller's CPU).
+// reaches its get() (post() drops it, the worker goes on); destroying a Job
+// waits for it; the job runs with the caller's affinity (the worker is only
+// started off the caller's CPU), and a caller confined to one CPU still gets
+// its jobs run.
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <future>
 #include <memory>
-#include <chrono>
 #include <stdexcept>
 #include <thread>
 #include <vector>
@@ -87,6 +89,26 @@ TEST(HelperThread, TheJobRunsWithTheCallersAffinity) {
     helper.submit([&] { ::pthread_getaffinity_np(::pthread_self(), sizeof(seen), &seen); }).get();
     EXPECT_TRUE(CPU_EQUAL(&seen, &caller));
   }
+}
+
+// A caller that may run on one CPU only (taskset, a cpuset of one core):
+// the affinity is left alone and the job still runs, there.
+TEST(HelperThread, ACallerOnOneCpuStillGetsItsJobsRun) {
+  cpu_set_t before, one;
+  ASSERT_EQ(::sched_getaffinity(0, sizeof(before), &before), 0);
+  const int cpu = ::sched_getcpu();
+  ASSERT_GE(cpu, 0);
+  CPU_ZERO(&one);
+  CPU_SET(cpu, &one);
+  ASSERT_EQ(::pthread_setaffinity_np(::pthread_self(), sizeof(one), &one), 0);
+  {
+    HelperThread helper;  // started from the one-CPU thread: it inherits that mask
+    cpu_set_t seen;
+    CPU_ZERO(&seen);
+    helper.submit([&] { ::pthread_getaffinity_np(::pthread_self(), sizeof(seen), &seen); }).get();
+    EXPECT_TRUE(CPU_EQUAL(&seen, &one));
+  }
+  ASSERT_EQ(::pthread_setaffinity_np(::pthread_self(), sizeof(before), &before), 0);
 }
 #endif
 
