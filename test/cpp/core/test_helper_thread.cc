@@ -62,16 +62,16 @@ TEST(HelperThread, DestroyingAJobWaitsForIt) {
   EXPECT_TRUE(done);
 }
 
-TEST(HelperThread, DestructionRunsTheJobsAlreadySubmitted) {
+TEST(HelperThread, DestructionRunsTheJobsAlreadyPostedThenJoins) {
   std::atomic<int> ran{0};
   {
     HelperThread helper;
     for (int i = 0; i < 3; ++i)
-      helper.submit([&] {
+      helper.post([&] {
         std::this_thread::sleep_for(std::chrono::milliseconds(5));
         ++ran;
-      }).get();
-  }
+      });
+  }  // nothing waited for them
   EXPECT_EQ(ran, 3);
 }
 
