@@ -424,7 +424,7 @@ void DynamicFilter::reset() {
   previous_.reset();
   last_.reset();
   keyframes_.clear();
-  motion_cue_cache_.reset();
+  motion_cue_cache_ = MotionCueCache();
   cues_last_frame_ = true;
   for (auto& s : stages_) s->reset();
 }

@@ -378,17 +378,7 @@ void detect_corners_ahead(const FrameData& frame, const map::Calibration& calib,
     return a;
   });
   cache.next_corners = task->get_future().share();
-  cache.ahead.post([task] { (*task)(); });  // what it throws reaches next_corners
-}
-
-void MotionCueCache::reset() {
-  image = cv::Mat();
-  pyramid.clear();
-  window = 0;
-  levels = -1;
-  corners_image = next_corners_image = cv::Mat();
-  corners = next_corners = std::shared_future<AheadCorners>();
-  ms.clear();
+  cache.ahead->post([task] { (*task)(); });  // what it throws reaches next_corners
 }
 
 std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& cur,

@@ -5,6 +5,7 @@
 // outside the movable-class regions (EgoMotion). Both are in stage.h.
 #include <future>
 #include <map>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -116,8 +117,10 @@ struct MotionCueCache {
   // thread per frame (track call, median of the runs' medians): stereo 29.0
   // -> 27.3 ms (10 + 10 runs), mono 18.2 -> 17.1 ms (12 + 12), RGB-D 21.0 ->
   // 20.1 ms (8 + 8); the same corners (synchronous runs: identical
-  // trajectories). Declared first: it outlives the futures below.
-  HelperThread ahead;
+  // trajectories). Owned through a pointer so that the cache stays movable:
+  // `cache = MotionCueCache()` starts afresh (the old worker finishes its job
+  // in flight, then ends).
+  std::unique_ptr<HelperThread> ahead = std::make_unique<HelperThread>();
   cv::Mat image;  // holds the buffer: no other image can have its address while cached
   std::vector<cv::Mat> pyramid;
   int window = 0, levels = -1;
@@ -134,10 +137,6 @@ struct MotionCueCache {
   // thread, beside the frame before: corners_ahead, and stereo_ahead when
   // their depths came with them (not part of the call's time, but a core's).
   std::map<std::string, double> ms;
-
-  // Forgets the images, pyramid, corners and times (a job in flight finishes
-  // on its own copies); keeps the worker.
-  void reset();
 };
 
 // The corners track_points tracks from an image: goodFeaturesToTrack
