@@ -98,13 +98,15 @@ SEMANTIC_CANDIDATES = "Dynamic.semantic: {classes: voc, margin: 5, policy: stati
 #          candidates, refined on its inliers, a 1 px RANSAC threshold and
 #          10 % dynamic points per object 1.00 / 0.90 (the vehicle, moving
 #          along its epipolar lines, is what recall misses)
-#   li:    0.870 / 0.968 with the preset's additions of ours (keep_frames
+#   li:    0.901 / 0.959 with the preset's additions of ours (keep_frames
 #          10: a rectangle found in two frames stays dynamic while no new one
 #          covers it; rigid_check: the pairs' reprojection error under the
 #          camera's motion from PnP on the previous SGBM depth, with agreeing
 #          neighbours; lk_forward_backward_max 3; foreground_only: of each
-#          rectangle only what is as near as its object, plus 15 px), no
-#          semantic input; 0.76 / 0.97 with whole rectangles, which overshoot
+#          rectangle only what is as near as its object, plus 5 px; 0.870 /
+#          0.968 plus 15 px), no semantic input (seeds 1 / 2: 0.840 / 0.898
+#          precision; the bound 0.89 leaves room for another CPU's rounding
+#          in SGBM and LK); 0.76 / 0.97 with whole rectangles, which overshoot
 #          the movers. Recall 0.99 on the crossing persons, 0.93 on the vehicle, whose
 #          points move along their epipolar lines (without rigid_check 0.77 /
 #          0.91, vehicle 0.77). The paper's method alone (keep_frames 0, no
@@ -118,7 +120,7 @@ STAGES = {
               + "Dynamic.stdyn: {f_exclude_candidates: 1, f_refine_on_inliers: 1, f_ransac_threshold_px: 1.0, "
                 "min_dynamic_ratio: 0.1}\n", 0.9, 0.85),
     "li": ("stereo", "Dynamic.stages: [li]\nDynamic.li: {keep_frames: 10, rigid_check: 1, "
-           "lk_forward_backward_max: 3, foreground_only: 1}\n", 0.85, 0.9),
+           "lk_forward_backward_max: 3, foreground_only: 1, foreground_band_px: 5}\n", 0.89, 0.9),
 }
 
 
@@ -134,7 +136,7 @@ def test_geometric_stage_precision_and_recall(tmp_path, synth_scenes, stage):
     print(f"{stage}: precision {precision:.3f} recall {recall:.3f} over {frames} frames; recall persons "
           f"{by_class[PERSON]:.3f} vehicle {by_class[CAR]:.3f}")
     assert precision >= least_precision and recall >= least_recall, (stage, precision, recall)
-    if stage == "li":  # measured 0.991 / 0.930 (the vehicle 0.77 without rigid_check)
+    if stage == "li":  # measured 0.985 / 0.918 (0.991 / 0.930 at 15 px; the vehicle 0.77 without rigid_check)
         assert by_class[PERSON] >= 0.9 and by_class[CAR] >= 0.9, by_class
     assert stats["dynamic_filter"]["stage_failures"] == 0
 
@@ -192,7 +194,8 @@ def test_li_without_semantic_input_within_1_5x(tmp_path, synth_seeds):
         assert li["tracked_frames"] == static["tracked_frames"], seed
         ratios.append(li["ate"]["rmse"] / static["ate"]["rmse"])
     print("li / static, seeds 0-2:", [round(r, 2) for r in ratios])
-    # Measured 2.30 / 1.42 / 1.14 (median 1.42; seeds 0-11 median 1.34); 2.20 /
+    # Measured 2.01 / 1.25 / 1.24 (median 1.25; seeds 0-11 median 1.25); 2.30
+    # / 1.42 / 1.14 with foreground_band_px 15 (seeds 0-11 1.34); 2.20 /
     # 1.40 / 1.17 with whole rectangles (no foreground_only), 1.96 / 1.39 /
     # 0.99 without the backward LK check either. Without its
     # rigid_check 2.26 / 2.78 / 1.95; the paper's method alone (no addition)

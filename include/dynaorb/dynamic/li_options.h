@@ -162,18 +162,17 @@ struct LiOptions {
   // the rectangle's pixels that are at least as near as its object, those
   // whose SGBM disparity is at least the smallest disparity of the cluster's
   // dynamic points less foreground_margin_px (pixels without a disparity
-  // count as near), and those within foreground_band_px of them: an ORB
-  // keypoint there has its 31 px patch (radius 15 at level 0) partly on the
-  // mover. The background the rectangle encloses, behind the mover and
-  // beside it, then keeps its features. A kept rectangle (keep_frames) keeps
-  // its object's disparity and is cut by each new frame's disparity.
+  // count as near), and those within foreground_band_px of them (the edge
+  // the SGBM disparity blurs, and the corners right at the outline). The
+  // background the rectangle encloses, behind the mover and beside it, then
+  // keeps its features. A kept rectangle (keep_frames) keeps its object's
+  // disparity and is cut by each new frame's disparity.
   // Measured (config/dynamic/li.yaml): seed 0 keypoint precision 0.76 ->
-  // 0.87 at 15 px; with no band 0.92, but ATE worse (seeds 0-11 li / static
-  // median 1.32 -> 1.43): the background right beside a mover does not
-  // track well.
+  // 0.90 at 5 px (0.87 at 15 px, an ORB patch's radius; 0.92 with no band);
+  // seeds 0-11 li / static median 1.25 at 5 px, 1.34 at 15, 1.43 with none.
   bool foreground_only = false;
   double foreground_margin_px = 2.0;
-  int foreground_band_px = 15;
+  int foreground_band_px = 5;
 
   // Ours, 0 (the paper, which judges every frame on its own): a dynamic
   // rectangle found in keep_min_hits frames stays dynamic for up to this many
