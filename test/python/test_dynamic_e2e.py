@@ -107,7 +107,7 @@ SEMANTIC_CANDIDATES = "Dynamic.semantic: {classes: voc, margin: 5, policy: stati
 #          0.968 plus 15 px), no semantic input (seeds 1 / 2: 0.840 / 0.898
 #          precision; the bound 0.89 leaves room for another CPU's rounding
 #          in SGBM and LK); 0.76 / 0.97 with whole rectangles, which overshoot
-#          the movers. Recall 0.99 on the crossing persons, 0.93 on the vehicle, whose
+#          the movers. Recall 0.99 on the crossing persons, 0.92 on the vehicle (0.93 at 15 px), whose
 #          points move along their epipolar lines (without rigid_check 0.77 /
 #          0.91, vehicle 0.77). The paper's method alone (keep_frames 0, no
 #          rigid_check): 0.82 / 0.76, vehicle 0.50 (Li's check finds 0.8-0.9

@@ -417,6 +417,43 @@ TEST(CandidateRegions, NearestClassIsTheClassOfTheNearestTransform) {
   }
 }
 
+// candidate_blobs gives connectedComponentsWithStats' labels, areas and
+// bounding boxes (it leaves the centroids out), on random masks of discs,
+// lines and single pixels, on an empty mask and on a mask of all ones (no
+// background: its row is zero).
+TEST(CandidateRegions, BlobsAreConnectedComponentsWithStats) {
+  std::mt19937 rng(11);
+  std::vector<cv::Mat> masks = {cv::Mat::zeros(30, 40, CV_8UC1), cv::Mat(30, 40, CV_8UC1, cv::Scalar(255))};
+  for (int scene = 0; scene < 40; ++scene) {
+    const int w = 20 + static_cast<int>(rng() % 400), h = 20 + static_cast<int>(rng() % 300);
+    cv::Mat m(h, w, CV_8UC1, cv::Scalar(0));
+    for (int k = 0; k < 15; ++k) {
+      const int x = static_cast<int>(rng() % w), y = static_cast<int>(rng() % h);
+      switch (rng() % 3) {
+        case 0: cv::circle(m, {x, y}, 1 + static_cast<int>(rng() % 40), cv::Scalar(255), cv::FILLED); break;
+        case 1: cv::line(m, {x, y}, {static_cast<int>(rng() % w), static_cast<int>(rng() % h)}, cv::Scalar(1)); break;
+        default: m.at<unsigned char>(y, x) = 7;
+      }
+    }
+    masks.push_back(m);
+  }
+  for (size_t i = 0; i < masks.size(); ++i) {
+    cv::Mat comp, stats, centroids;
+    const int n = cv::connectedComponentsWithStats(masks[i], comp, stats, centroids, 8, CV_32S);
+    const CandidateBlobs b = candidate_blobs(masks[i]);
+    ASSERT_EQ(b.count, n - 1) << "mask " << i;
+    ASSERT_EQ(cv::countNonZero(b.comp != comp), 0) << "mask " << i;
+    ASSERT_EQ(b.stats.rows, n);
+    const bool all_ones = cv::countNonZero(masks[i]) == static_cast<int>(masks[i].total());
+    for (int r = all_ones ? 1 : 0; r < n; ++r)
+      for (int k = 0; k < cv::CC_STAT_MAX; ++k)
+        ASSERT_EQ(b.stats.at<int>(r, k), stats.at<int>(r, k)) << "mask " << i << " label " << r << " stat " << k;
+    if (all_ones) EXPECT_EQ(b.stats.at<int>(0, cv::CC_STAT_AREA), 0);
+  }
+  EXPECT_EQ(candidate_blobs(cv::Mat()).count, 0);
+  EXPECT_EQ(candidate_blobs(cv::Mat(10, 10, CV_32FC1, cv::Scalar(1))).count, 0);
+}
+
 // The memo gives what candidate_regions gives, once per distinct input:
 // the same pixels in another buffer are the same input, other pixels are not.
 TEST(CandidateRegions, MemoCutsEqualInputsOnce) {
