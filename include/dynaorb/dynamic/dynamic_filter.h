@@ -59,14 +59,21 @@ struct DynamicFilterOptions {
   // worker thread detects the frame's ORB corners (OrbExtractor::detect; the
   // filter's mask only decides which of them are kept and described, so the
   // features are the same). 1: always; 0: never (the filter, then the
-  // extraction); -1 (auto): with at least 2 hardware threads for mono and
-  // RGB-D, at least 4 for stereo. Measured on 2 cores (`full`, `dynaorb synth`
-  // sequences with 3 movers, asynchronous mapping, 3 interleaved runs): the
-  // track call 36.3 -> 33.0 ms (mono) and 38.0 -> 34.4 ms (RGB-D); stereo
-  // 33.4 -> 35.0 ms, as its filter and its two-image extraction already keep
-  // both cores busy (stereo on 4 or more cores: not measured here).
+  // extraction); -1 (auto): with at least 4 hardware threads. On 2 cores the
+  // second one is taken already: by the next frame's motion-cue corners
+  // (MotionCueCache::ahead), local mapping, the network, and for stereo the
+  // right image (FrameBuilder's HelperThread). There, `full` with asynchronous
+  // mapping, overlapped against not (medians of interleaved runs, track
+  // call): synthetic RGB-D with movers 19.4 against 18.6 ms (8 + 8), without
+  // 13.8 against 13.0 (6 + 6); synthetic mono with movers 16.0 against 15.9
+  // (8 + 8), without 14.0 against 12.7 (6 + 6); EuRoC MH_05 mono with the
+  // network 15.4 against 14.2 (4 + 4); stereo 27.5 against 27.2 (5 + 5);
+  // the filter alone 12.2 -> 9.3 ms (RGB-D) and 8.4 -> 6.3 ms (mono), as the
+  // detection no longer shares its core. Before the motion cues' worker (3
+  // runs each) the overlap had gained 36.3 -> 33.0 ms (mono) and 38.0 ->
+  // 34.4 ms (RGB-D). On 4 or more cores: not measured here.
   int overlap_extraction = -1;
-  bool overlaps_extraction(Sensor sensor, unsigned hardware_threads) const;
+  bool overlaps_extraction(unsigned hardware_threads) const;
 
   // Reads a preset file (the `%YAML:1.0` first line may be left out);
   // InputError naming the file and the key for a missing
