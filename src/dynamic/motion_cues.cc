@@ -15,6 +15,7 @@
 #include <opencv2/video/tracking.hpp>
 
 #include "dynaorb/core/stopwatch.h"
+#include "dynaorb/dynamic/corner_subpix.h"
 #include "dynaorb/io/errors.h"
 #include "file_node_options.h"
 #include "option_checks.h"
@@ -94,16 +95,16 @@ float depth_at(const cv::Mat& depth, const cv::Point2f& p, const MotionCueOption
   return z;
 }
 
-// cornerSubPix refines each corner on its own: chunks of corners on the
-// worker threads give what one call over all of them gives.
+// DS-SLAM's cornerSubPix (half window, 20 steps, 0.03 px), corner by corner:
+// chunks of corners on the worker threads give what one call over all of them
+// gives.
 void refine_corners(const cv::Mat& grey, std::vector<cv::Point2f>& corners, int half_window) {
-  const cv::TermCriteria crit(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03);
   const int n = static_cast<int>(corners.size());
   constexpr int kChunk = 64;
   cv::parallel_for_(cv::Range(0, (n + kChunk - 1) / kChunk), [&](const cv::Range& r) {
     const int begin = r.start * kChunk, end = std::min(n, r.end * kChunk);
     std::vector<cv::Point2f> part(corners.begin() + begin, corners.begin() + end);
-    cv::cornerSubPix(grey, part, cv::Size(half_window, half_window), cv::Size(-1, -1), crit);
+    refine_corners_subpix(grey, part, half_window, 20, 0.03);
     std::copy(part.begin(), part.end(), corners.begin() + begin);
   });
 }
