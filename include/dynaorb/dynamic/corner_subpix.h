@@ -1,9 +1,8 @@
-// Sub-pixel corner refinement: cv::cornerSubPix's iteration (Foerstner's
-// least-squares corner: the point that every gradient in the window points
-// away from), computed in float with 4-lane SIMD instead of OpenCV's scalar
-// double loop. Same window, Gaussian weights, stopping rules and fallback;
-// positions agree with OpenCV's to float rounding where the corner is well
-// conditioned (tested against it).
+// Sub-pixel corner refinement: cv::cornerSubPix (Foerstner's least-squares
+// corner: the point every gradient in the window points away from) with
+// OpenCV's floating-point operations in OpenCV's order, two corners at a
+// time on SIMD lanes: the same positions, bit for bit, in about half the time
+// (src/dynamic/corner_subpix.cc).
 #pragma once
 
 #include <vector>
