@@ -23,15 +23,16 @@
 //    expressions, every product and sum in double in OpenCV's order: the
 //    window's pixels are added one after the other, row by row;
 //  - the step, its tests and the final fallback.
-// What differs: the float parts run on 4 lanes and the double parts on 2,
-// one lane per corner, so that each corner's sums are still one sequential
-// chain. With no FMA contraction (x86-64's SSE2 baseline, as Debian builds
-// OpenCV; CMakeLists.txt sets -ffp-contract=off on this file) every lane
+// What differs: the float parts run on 4 lanes, the double parts on 2 (SSE2)
+// or 4 (AVX2, where the CPU has it), one lane per corner, so that each
+// corner's sums are still one sequential chain. With no FMA contraction
+// (x86-64's SSE2 baseline, as Debian builds OpenCV; the AVX2 code asks for
+// no FMA; CMakeLists.txt sets -ffp-contract=off on this file) every lane
 // computes what OpenCV's scalar code computes: the gtest compares positions
-// bit for bit on real images.
+// bit for bit on real images, for both lane counts.
 // Measured on one thread, DS-SLAM's settings (w = 10, 20 steps, 0.03 px):
-// the 715 Harris corners of a `dynaorb synth` RGB-D frame 18.7 -> 8.4 ms, the
-// 914 of a KITTI 06 frame 26.2 -> 12.0 ms; at w = 5 4.8 -> 2.5 ms.
+// the 715 Harris corners of a `dynaorb synth` RGB-D frame 18.8 -> 8.5 ms with
+// 2 lanes, 6.7 ms with 4; the 914 of a KITTI 06 frame 26.3 -> 12.0 / 9.1 ms.
 #include "dynaorb/dynamic/corner_subpix.h"
 
 #include <algorithm>
@@ -40,53 +41,58 @@
 #include <cstring>
 
 #include <opencv2/core/hal/intrin.hpp>
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
 #include <opencv2/imgproc.hpp>
 
 namespace dynaorb::dynamic {
 
 namespace {
 
-constexpr int kLanes = 2;  // corners refined side by side (double lanes of a 128-bit register)
-
-// The window's constants and the buffers of the two lanes.
+// The window's constants and the buffers of L lanes (L corners refined side by side).
+template <int L>
 struct SubpixWork {
   int half = 0;
   int width = 0;   // 2 * half + 1: the window
   int side = 0;    // width + 2: the sampled patch
   int pixels = 0;  // width^2
-  int stride = 0;  // a patch row in floats, side rounded up to whole vectors
-  std::vector<double> m2, px2, py2;  // per window pixel, twice (one per lane): weight, x, y
-  std::vector<float> patch[kLanes];  // side rows of `stride`
-  std::vector<float> source;         // side + 1 rows of side + 1 pixels as float (+ padding)
-  std::vector<float> t;              // one patch row's t_j
-  std::vector<float> gx, gy;         // per window pixel, interleaved by lane
-  std::vector<float> row_gx[kLanes], row_gy[kLanes];
+  int stride = 0;  // a patch row in floats: whole vectors, room for loads at j + 1
+  int row_pad = 0; // a window row rounded up to whole vectors
+  std::vector<double> m, px, py;  // per window pixel, L times (one per lane): weight, x, y
+  std::vector<float> patch[L];    // side rows of `stride`
+  std::vector<float> source;      // side + 1 rows of side + 1 pixels as float (+ padding)
+  std::vector<float> t;           // one patch row's t_j
+  std::vector<float> gx, gy;      // per window pixel, interleaved: pixel k of lane l at L k + l
+  std::vector<float> row_gx[L], row_gy[L];
 
   explicit SubpixWork(int w) : half(w), width(2 * w + 1), side(2 * w + 3), pixels(width * width) {
-    stride = (side + 4 + 3) / 4 * 4;  // vector loads at j + 1 for j < side
-    m2.resize(2 * pixels);
-    px2.resize(2 * pixels);
-    py2.resize(2 * pixels);
+    stride = (side + 4 + 3) / 4 * 4;
+    row_pad = (width + 3) / 4 * 4;
+    m.resize(L * static_cast<size_t>(pixels));
+    px.resize(m.size());
+    py.resize(m.size());
     for (int i = 0, k = 0; i < width; ++i) {
       // OpenCV's weights, in its float expressions.
       const float y = static_cast<float>(i - half) / half;
       const float vy = std::exp(-y * y);
       for (int j = 0; j < width; ++j, ++k) {
         const float x = static_cast<float>(j - half) / half;
-        const float m = static_cast<float>(vy * std::exp(-x * x));
-        m2[2 * k] = m2[2 * k + 1] = m;
-        px2[2 * k] = px2[2 * k + 1] = j - half;
-        py2[2 * k] = py2[2 * k + 1] = i - half;
+        const float mk = static_cast<float>(vy * std::exp(-x * x));
+        for (int l = 0; l < L; ++l) {
+          m[L * k + l] = mk;
+          px[L * k + l] = j - half;
+          py[L * k + l] = i - half;
+        }
       }
     }
     for (auto& p : patch) p.assign(static_cast<size_t>(side) * stride, 0.f);
     source.assign(static_cast<size_t>(side + 1) * stride, 0.f);
     t.assign(stride + 4, 0.f);
-    const int row_pad = (width + 3) / 4 * 4;
     // Interleaved rows are stored whole vectors at a time: room for the last one's overrun.
-    gx.assign(2 * static_cast<size_t>(pixels) + 2 * row_pad + 4, 0.f);
+    gx.assign(L * (static_cast<size_t>(pixels) + row_pad) + 4, 0.f);
     gy.assign(gx.size(), 0.f);
-    for (int l = 0; l < kLanes; ++l) {
+    for (int l = 0; l < L; ++l) {
       row_gx[l].assign(row_pad, 0.f);
       row_gy[l].assign(row_pad, 0.f);
     }
@@ -139,77 +145,113 @@ struct SubpixWork {
     }
   }
 
-  // Both lanes' gradients of window row i, interleaved (pixel k of lane l at 2k + l).
-  void interleave_row(int i) {
-    const int row_pad = static_cast<int>(row_gx[0].size());
-    float* ox = gx.data() + 2 * static_cast<size_t>(i) * width;
-    float* oy = gy.data() + 2 * static_cast<size_t>(i) * width;
-    for (int j = 0; j < row_pad; j += 4) {
-      cv::v_float32x4 lo, hi;
-      cv::v_zip(cv::v_load(row_gx[0].data() + j), cv::v_load(row_gx[1].data() + j), lo, hi);
-      cv::v_store(ox + 2 * j, lo);
-      cv::v_store(ox + 2 * j + 4, hi);
-      cv::v_zip(cv::v_load(row_gy[0].data() + j), cv::v_load(row_gy[1].data() + j), lo, hi);
-      cv::v_store(oy + 2 * j, lo);
-      cv::v_store(oy + 2 * j + 4, hi);
-    }
-  }
-
-  // Gradients of both lanes' patches, row by row, interleaved.
-  void all_gradients() {
-    const float* p0 = patch[0].data();
-    const float* p1 = patch[1].data();
-    for (int i = 0; i < width; ++i) {
-      for (int l = 0; l < kLanes; ++l) {
-        const float* p = l == 0 ? p0 : p1;
-        const float* up = p + static_cast<size_t>(i) * stride + 1;
-        const float* mid = p + static_cast<size_t>(i + 1) * stride;
-        const float* down = p + static_cast<size_t>(i + 2) * stride + 1;
-        float* rx = row_gx[l].data();
-        float* ry = row_gy[l].data();
-        for (int j = 0; j < width; j += 4) {
-          cv::v_store(rx + j, cv::v_load(mid + j + 2) - cv::v_load(mid + j));
-          cv::v_store(ry + j, cv::v_load(down + j) - cv::v_load(up + j));
-        }
+  // The lanes' gradients of window row i (OpenCV's float differences), interleaved.
+  void gradient_row(int i) {
+    for (int l = 0; l < L; ++l) {
+      const float* p = patch[l].data();
+      const float* up = p + static_cast<size_t>(i) * stride + 1;
+      const float* mid = p + static_cast<size_t>(i + 1) * stride;
+      const float* down = p + static_cast<size_t>(i + 2) * stride + 1;
+      for (int j = 0; j < width; j += 4) {
+        cv::v_store(row_gx[l].data() + j, cv::v_load(mid + j + 2) - cv::v_load(mid + j));
+        cv::v_store(row_gy[l].data() + j, cv::v_load(down + j) - cv::v_load(up + j));
       }
-      interleave_row(i);
     }
+    interleave(row_gx, gx.data() + L * static_cast<size_t>(i) * width);
+    interleave(row_gy, gy.data() + L * static_cast<size_t>(i) * width);
   }
 
-  // OpenCV's sums, one lane per corner, each added pixel after pixel:
-  // out[l][0..4] = a, b, c, bb1, bb2 of lane l.
-  void sums(double out[kLanes][5]) const {
-    cv::v_float64x2 A = cv::v_setzero_f64(), B = A, C = A, BB1 = A, BB2 = A;
-    const auto pixel = [&](const cv::v_float64x2& tgx, const cv::v_float64x2& tgy, int k) {
-      const cv::v_float64x2 m = cv::v_load(&m2[2 * k]);
-      const cv::v_float64x2 px = cv::v_load(&px2[2 * k]), py = cv::v_load(&py2[2 * k]);
-      const cv::v_float64x2 gxx = tgx * tgx * m, gxy = tgx * tgy * m, gyy = tgy * tgy * m;
-      A = A + gxx;
-      B = B + gxy;
-      C = C + gyy;
-      BB1 = BB1 + (gxx * px + gxy * py);
-      BB2 = BB2 + (gxy * px + gyy * py);
-    };
-    int k = 0;
-    for (; k + 2 <= pixels; k += 2) {
-      const cv::v_float32x4 fx = cv::v_load(&gx[2 * k]), fy = cv::v_load(&gy[2 * k]);
-      pixel(cv::v_cvt_f64(fx), cv::v_cvt_f64(fy), k);
-      pixel(cv::v_cvt_f64_high(fx), cv::v_cvt_f64_high(fy), k + 1);
+  // out[L j + l] = rows[l][j].
+  void interleave(const std::vector<float> (&rows)[L], float* out) const {
+    for (int j = 0; j < row_pad; j += 4) {
+      if constexpr (L == 2) {
+        cv::v_float32x4 lo, hi;
+        cv::v_zip(cv::v_load(rows[0].data() + j), cv::v_load(rows[1].data() + j), lo, hi);
+        cv::v_store(out + 2 * j, lo);
+        cv::v_store(out + 2 * j + 4, hi);
+      } else {
+        static_assert(L == 4, "2 or 4 lanes");
+        cv::v_float32x4 b0, b1, b2, b3;
+        cv::v_transpose4x4(cv::v_load(rows[0].data() + j), cv::v_load(rows[1].data() + j),
+                           cv::v_load(rows[2].data() + j), cv::v_load(rows[3].data() + j), b0, b1, b2, b3);
+        cv::v_store(out + 4 * j, b0);
+        cv::v_store(out + 4 * j + 4, b1);
+        cv::v_store(out + 4 * j + 8, b2);
+        cv::v_store(out + 4 * j + 12, b3);
+      }
     }
-    if (k < pixels) {
-      const cv::v_float32x4 fx = cv::v_load(&gx[2 * k]), fy = cv::v_load(&gy[2 * k]);
-      pixel(cv::v_cvt_f64(fx), cv::v_cvt_f64(fy), k);
-    }
-    double v[5][kLanes];
-    cv::v_store(v[0], A);
-    cv::v_store(v[1], B);
-    cv::v_store(v[2], C);
-    cv::v_store(v[3], BB1);
-    cv::v_store(v[4], BB2);
-    for (int l = 0; l < kLanes; ++l)
-      for (int q = 0; q < 5; ++q) out[l][q] = v[q][l];
   }
 };
+
+// OpenCV's sums of two lanes, each added pixel after pixel: out[l] = a, b, c, bb1, bb2.
+void sums(const SubpixWork<2>& w, double out[2][5]) {
+  cv::v_float64x2 A = cv::v_setzero_f64(), B = A, C = A, BB1 = A, BB2 = A;
+  const auto pixel = [&](const cv::v_float64x2& tgx, const cv::v_float64x2& tgy, int k) {
+    const cv::v_float64x2 m = cv::v_load(&w.m[2 * k]);
+    const cv::v_float64x2 px = cv::v_load(&w.px[2 * k]), py = cv::v_load(&w.py[2 * k]);
+    const cv::v_float64x2 gxx = tgx * tgx * m, gxy = tgx * tgy * m, gyy = tgy * tgy * m;
+    A = A + gxx;
+    B = B + gxy;
+    C = C + gyy;
+    BB1 = BB1 + (gxx * px + gxy * py);
+    BB2 = BB2 + (gxy * px + gyy * py);
+  };
+  int k = 0;
+  for (; k + 2 <= w.pixels; k += 2) {
+    const cv::v_float32x4 fx = cv::v_load(&w.gx[2 * k]), fy = cv::v_load(&w.gy[2 * k]);
+    pixel(cv::v_cvt_f64(fx), cv::v_cvt_f64(fy), k);
+    pixel(cv::v_cvt_f64_high(fx), cv::v_cvt_f64_high(fy), k + 1);
+  }
+  if (k < w.pixels) {
+    const cv::v_float32x4 fx = cv::v_load(&w.gx[2 * k]), fy = cv::v_load(&w.gy[2 * k]);
+    pixel(cv::v_cvt_f64(fx), cv::v_cvt_f64(fy), k);
+  }
+  double v[5][2];
+  cv::v_store(v[0], A);
+  cv::v_store(v[1], B);
+  cv::v_store(v[2], C);
+  cv::v_store(v[3], BB1);
+  cv::v_store(v[4], BB2);
+  for (int l = 0; l < 2; ++l)
+    for (int q = 0; q < 5; ++q) out[l][q] = v[q][l];
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+// The same with four lanes in AVX registers (AVX2 CPUs; no FMA).
+__attribute__((target("avx2"))) void sums(const SubpixWork<4>& w, double out[4][5]) {
+  __m256d A = _mm256_setzero_pd(), B = A, C = A, BB1 = A, BB2 = A;
+  for (int k = 0; k < w.pixels; ++k) {
+    const __m256d tgx = _mm256_cvtps_pd(_mm_loadu_ps(&w.gx[4 * k]));
+    const __m256d tgy = _mm256_cvtps_pd(_mm_loadu_ps(&w.gy[4 * k]));
+    const __m256d m = _mm256_loadu_pd(&w.m[4 * k]);
+    const __m256d px = _mm256_loadu_pd(&w.px[4 * k]), py = _mm256_loadu_pd(&w.py[4 * k]);
+    const __m256d gxx = _mm256_mul_pd(_mm256_mul_pd(tgx, tgx), m);
+    const __m256d gxy = _mm256_mul_pd(_mm256_mul_pd(tgx, tgy), m);
+    const __m256d gyy = _mm256_mul_pd(_mm256_mul_pd(tgy, tgy), m);
+    A = _mm256_add_pd(A, gxx);
+    B = _mm256_add_pd(B, gxy);
+    C = _mm256_add_pd(C, gyy);
+    BB1 = _mm256_add_pd(BB1, _mm256_add_pd(_mm256_mul_pd(gxx, px), _mm256_mul_pd(gxy, py)));
+    BB2 = _mm256_add_pd(BB2, _mm256_add_pd(_mm256_mul_pd(gxy, px), _mm256_mul_pd(gyy, py)));
+  }
+  alignas(32) double v[5][4];
+  _mm256_store_pd(v[0], A);
+  _mm256_store_pd(v[1], B);
+  _mm256_store_pd(v[2], C);
+  _mm256_store_pd(v[3], BB1);
+  _mm256_store_pd(v[4], BB2);
+  for (int l = 0; l < 4; ++l)
+    for (int q = 0; q < 5; ++q) out[l][q] = v[q][l];
+}
+
+bool cpu_has_avx2() {
+  static const bool avx2 = __builtin_cpu_supports("avx2");
+  return avx2;
+}
+#else
+bool cpu_has_avx2() { return false; }
+void sums(const SubpixWork<4>&, double[4][5]) {}  // never called
+#endif
 
 // One corner's refinement in progress.
 struct Lane {
@@ -218,22 +260,10 @@ struct Lane {
   int iter = 0;
 };
 
-}  // namespace
-
-void refine_corners_subpix(const cv::Mat& grey, std::vector<cv::Point2f>& corners, int half_window,
-                           int max_iterations, double epsilon) {
-  if (corners.empty()) return;
-  CV_Assert(half_window > 0);
-  CV_Assert(grey.type() == CV_8UC1);
-  CV_Assert(grey.cols >= half_window * 2 + 5 && grey.rows >= half_window * 2 + 5);
-  const int iterations = std::min(std::max(max_iterations, 1), 100);  // OpenCV's MAX_ITERS
-  double eps = std::max(epsilon, 0.);
-  eps *= eps;
-  const cv::Rect image(0, 0, grey.cols, grey.rows);
-  for (const cv::Point2f& p : corners) CV_Assert(image.contains(p));
-
-  SubpixWork work(half_window);
-  Lane lanes[kLanes];
+template <int L>
+void refine(const cv::Mat& grey, std::vector<cv::Point2f>& corners, int half_window, int iterations, double eps) {
+  SubpixWork<L> work(half_window);
+  Lane lanes[L];
   size_t next = 0;
   const auto take = [&](Lane& lane) {
     lane.index = -1;
@@ -249,13 +279,13 @@ void refine_corners_subpix(const cv::Mat& grey, std::vector<cv::Point2f>& corner
     take(lane);
   };
   for (Lane& lane : lanes) take(lane);
-  double s[kLanes][5];
-  while (lanes[0].index >= 0 || lanes[1].index >= 0) {
-    for (int l = 0; l < kLanes; ++l)
+  double s[L][5];
+  while (std::any_of(lanes, lanes + L, [](const Lane& lane) { return lane.index >= 0; })) {
+    for (int l = 0; l < L; ++l)
       if (lanes[l].index >= 0) work.sample(grey, lanes[l].c, l);
-    work.all_gradients();
-    work.sums(s);
-    for (int l = 0; l < kLanes; ++l) {
+    for (int i = 0; i < work.width; ++i) work.gradient_row(i);
+    sums(work, s);
+    for (int l = 0; l < L; ++l) {
       Lane& lane = lanes[l];
       if (lane.index < 0) continue;
       const double a = s[l][0], b = s[l][1], c = s[l][2], bb1 = s[l][3], bb2 = s[l][4];
@@ -277,6 +307,38 @@ void refine_corners_subpix(const cv::Mat& grey, std::vector<cv::Point2f>& corner
       if (!(++lane.iter < iterations && err > eps)) finish(lane);
     }
   }
+}
+
+}  // namespace
+
+namespace detail {
+
+int subpix_lanes_available() { return cpu_has_avx2() ? 4 : 2; }
+
+void refine_corners_subpix_lanes(const cv::Mat& grey, std::vector<cv::Point2f>& corners, int half_window,
+                                 int max_iterations, double epsilon, int lanes) {
+  if (corners.empty()) return;
+  CV_Assert(half_window > 0);
+  CV_Assert(grey.type() == CV_8UC1);
+  CV_Assert(grey.cols >= half_window * 2 + 5 && grey.rows >= half_window * 2 + 5);
+  CV_Assert(lanes == 2 || (lanes == 4 && cpu_has_avx2()));
+  const int iterations = std::min(std::max(max_iterations, 1), 100);  // OpenCV's MAX_ITERS
+  double eps = std::max(epsilon, 0.);
+  eps *= eps;
+  const cv::Rect image(0, 0, grey.cols, grey.rows);
+  for (const cv::Point2f& p : corners) CV_Assert(image.contains(p));
+  if (lanes == 4)
+    refine<4>(grey, corners, half_window, iterations, eps);
+  else
+    refine<2>(grey, corners, half_window, iterations, eps);
+}
+
+}  // namespace detail
+
+void refine_corners_subpix(const cv::Mat& grey, std::vector<cv::Point2f>& corners, int half_window,
+                           int max_iterations, double epsilon) {
+  detail::refine_corners_subpix_lanes(grey, corners, half_window, max_iterations, epsilon,
+                                      detail::subpix_lanes_available());
 }
 
 }  // namespace dynaorb::dynamic

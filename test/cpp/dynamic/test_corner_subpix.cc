@@ -1,7 +1,8 @@
 // refine_corners_subpix against cv::cornerSubPix: the same positions, bit for
 // bit, on real images (EuRoC V1_01 cam0, KITTI 06, TUM fr3 walking_xyz) with
 // the motion cues' Harris corners, at the image border (OpenCV's replicated
-// patch), for several windows and stopping rules; and the same refusals.
+// patch), for several windows and stopping rules, with 2 lanes and (on an
+// AVX2 CPU) 4; and the same refusals.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -19,6 +20,8 @@ namespace dynaorb {
 namespace {
 
 using dynamic::refine_corners_subpix;
+using dynamic::detail::refine_corners_subpix_lanes;
+using dynamic::detail::subpix_lanes_available;
 using test::shared_data;
 
 cv::Mat first_image(const test::fs::path& dir, int skip) {
@@ -39,15 +42,19 @@ bool same_bits(const cv::Point2f& a, const cv::Point2f& b) {
   return std::memcmp(&a, &b, sizeof a) == 0;
 }
 
-// Refines `corners` both ways and counts the corners whose positions differ in any bit.
+// Refines `corners` with OpenCV and with every lane count this CPU has, and counts the
+// corners whose positions differ from OpenCV's in any bit (summed over the lane counts).
 int differing(const cv::Mat& grey, const std::vector<cv::Point2f>& corners, int half, int iterations,
               double eps) {
-  std::vector<cv::Point2f> ours = corners, theirs = corners;
-  refine_corners_subpix(grey, ours, half, iterations, eps);
+  std::vector<cv::Point2f> theirs = corners;
   cv::cornerSubPix(grey, theirs, cv::Size(half, half), cv::Size(-1, -1),
                    cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, iterations, eps));
   int n = 0;
-  for (size_t i = 0; i < corners.size(); ++i) n += !same_bits(ours[i], theirs[i]);
+  for (int lanes = 2; lanes <= subpix_lanes_available(); lanes *= 2) {
+    std::vector<cv::Point2f> ours = corners;
+    refine_corners_subpix_lanes(grey, ours, half, iterations, eps, lanes);
+    for (size_t i = 0; i < corners.size(); ++i) n += !same_bits(ours[i], theirs[i]);
+  }
   return n;
 }
 
@@ -111,6 +118,8 @@ TEST(CornerSubpix, RefusesWhatCornerSubPixRefuses) {
   EXPECT_THROW(refine_corners_subpix(cv::Mat(100, 100, CV_32FC1, cv::Scalar(0)), one, 10, 20, 0.03), cv::Exception);
   EXPECT_THROW(refine_corners_subpix(cv::Mat(20, 20, CV_8UC1, cv::Scalar(0)), one, 10, 20, 0.03), cv::Exception);
   EXPECT_THROW(refine_corners_subpix(grey, one, 0, 20, 0.03), cv::Exception);
+  EXPECT_THROW(refine_corners_subpix_lanes(grey, one, 10, 20, 0.03, 3), cv::Exception);
+  EXPECT_TRUE(subpix_lanes_available() == 2 || subpix_lanes_available() == 4);
 }
 
 }  // namespace
