@@ -1,5 +1,5 @@
 // cv::cornerSubPix (OpenCV 4, imgproc/cornersubpix.cpp) with the same
-// floating-point operations in the same order, two corners at a time.
+// floating-point operations in the same order, two or four corners at a time.
 //
 // The algorithm (Foerstner's corner; OpenCV's names): each step samples the
 // (2w+3)^2 patch around the current estimate c by bilinear interpolation
