@@ -195,6 +195,34 @@ def test_peer_rgbd_manifest(tmp_path, synth_rgbd):
     assert "RGBD.DepthMapFactor: 5000.0" in text and "Stereo.b: 0.08" in text
     assert len(manifest["frames"]) == 8
     assert all(pathlib.Path(f["depth"]).is_file() and "depth" in f["depth"] for f in manifest["frames"])
+    assert "realtime" not in manifest  # as fast as the track calls go
+    paced = orbslam3.PeerCase("tum", str(synth_rgbd), "rgbd", tmp_path / "paced", realtime=2.0)
+    assert json.loads(orbslam3.prepare(paced, tmp_path / "ORBvoc.txt").read_text())["realtime"] == 2.0
+
+
+def test_realtime_paces_ours_and_the_peer_alike(tmp_path, monkeypatch):
+    """--realtime RATE reaches our runs' spec (RunOptions.realtime) and the peer's case; without it neither
+    is paced and the specs stay as before (an earlier bench's runs can be resumed)."""
+    from dynaorb.bench import suite_runner
+    from dynaorb.bench.process import ChildResult
+    from dynaorb.bench.suites import Case, Sequence
+    from dynaorb.peer import orbslam3 as peer
+
+    specs, cases = [], []
+    monkeypatch.setattr(suite_runner, "run_spec", lambda out, spec, timeout: specs.append(spec) or
+                        ChildResult(returncode=1, peak_rss_mb=None, wall_s=0.0, timed_out=False,
+                                    log=str(out / "run.log")))
+    monkeypatch.setattr(peer, "run", lambda case, python, vocabulary, timeout_s: cases.append(case) or
+                        {"error": "not run (test)"})
+    seq = Sequence("synth/a", "kitti", "/nowhere/a", "stereo")
+    for rate in (0.0, 2.0):
+        opts = suite_runner.BenchOptions(out=str(tmp_path), realtime=rate)
+        suite_runner._ours_record(Case(seq, "off"), 0, tmp_path / f"ours{rate}", opts)
+        suite_runner._peer_record(seq, 0, tmp_path / f"peer{rate}", "python", "voc.txt", 10, realtime=rate)
+    assert "realtime" not in specs[0] and specs[1]["realtime"] == 2.0
+    assert [c.realtime for c in cases] == [0.0, 2.0]
+    assert "2x the recording's rate" in suite_runner.mapping_mode(2.0)
+    assert "as fast as" in suite_runner.mapping_mode(0.0)
 
 
 def _saved(data, kind, rel, sensor, tmp_path) -> pathlib.Path:
@@ -278,10 +306,12 @@ def test_real_peer_run(tmp_path, synth_rgbd):
     except orbslam3.PeerUnavailable as exc:
         pytest.skip(f"pyorbslam3 cannot be installed or loaded here: {exc}")
     vocabulary = orbslam3.vocabulary_text("default")
-    stats = orbslam3.run(orbslam3.PeerCase("tum", str(synth_rgbd), "rgbd", tmp_path / "peer"), python, vocabulary,
-                         timeout_s=300)
+    # Paced at the recording's rate (30 Hz), as --realtime runs it: the worker loads dynaorb's pacing.py.
+    stats = orbslam3.run(orbslam3.PeerCase("tum", str(synth_rgbd), "rgbd", tmp_path / "peer", realtime=1.0), python,
+                         vocabulary, timeout_s=300)
     assert "error" not in stats, stats.get("error")
     assert stats["frames"] == 8 and stats["tracked_fraction"] > 0.5
+    assert stats["realtime"]["rate"] == 1.0 and stats["realtime"]["frames"] == 8
     assert stats["ate"] is not None and stats["ate"]["rmse"] < 0.25
     assert stats["track_call_ms_median"] > 0 and stats["peak_rss_mb"] > 50
 

@@ -1,7 +1,9 @@
 """`dynaorb bench --suite quick|full`: every case N times, each run in its own process, and the peer.
 
 Ours: run_dataset with local mapping in its own thread (synchronous_mapping
-False), as a live camera runs it; ms per frame is the tracking thread's
+False), as a live camera runs it, the frames handed over as fast as the
+track calls take them or, with `realtime`, at the recording's rate (both
+systems alike); ms per frame is the tracking thread's
 frame_total median (its stages), and the wall time around the track call is
 kept beside it for the comparison with the peer, which is timed that way.
 The peer (ORB-SLAM3 through pyorbslam3) runs on each sequence N times in
@@ -53,6 +55,10 @@ class BenchOptions:
     # camera, its time reported apart from the tracking thread's. None: no network.
     segment_model: str | None = None
     resume: bool = False            # reuse OUT/runs/<case>/<run>/record.json written for the same spec
+    # Frames delivered at this multiple of the recording's rate by their stamps, to ours and to the peer
+    # alike (a camera or `rosbag play`; ORB-SLAM3's example runners pace the same way); 0: as fast as the
+    # track calls take them.
+    realtime: float = 0.0
 
 
 def _slug(text: str) -> str:
@@ -90,6 +96,8 @@ def _ours_record(case: Case, run: int, out: pathlib.Path, opts: BenchOptions) ->
     out.mkdir(parents=True, exist_ok=True)
     spec = {"kind": seq.kind, "path": seq.path, "sensor": seq.sensor, "out": str(out), "dynamic": case.preset,
             "vocabulary": opts.vocabulary, "synchronous_mapping": False, "result": str(out / "result.json")}
+    if opts.realtime:
+        spec["realtime"] = opts.realtime
     # The semantic stage reads the label images; presets without it (li) run without labels.
     if case.preset != "off" and _has_semantic(case.preset, seq.sensor):
         if seq.labels:
@@ -114,7 +122,7 @@ def _ours_record(case: Case, run: int, out: pathlib.Path, opts: BenchOptions) ->
         record["peak_rss_mb"] = max(v for v in (child.peak_rss_mb, stats.get("peak_rss_mb_self"), 0.0) if v is not None)
         record["stats"] = {k: stats.get(k) for k in ("frames", "tracked_frames", "init_frame", "states",
                                                       "lost_frames", "relocalizations", "map", "wall_s",
-                                                      "frames_rejected", "frames_skipped")}
+                                                      "frames_rejected", "frames_skipped", "realtime")}
         seg = stats.get("segmentation")
         # The network's own time, on its thread (not inside the tracking thread's ms).
         record["network"] = None if not seg else {k: seg.get(k) for k in (
@@ -161,18 +169,20 @@ def _metrics(stats: dict) -> dict:
 
 
 def _peer_record(seq: Sequence, run: int, root: pathlib.Path, python, vocabulary, timeout_s: float,
-                 resume: bool = False) -> dict:
+                 resume: bool = False, realtime: float = 0.0) -> dict:
     """One run of the peer on seq (its record, also written to its run folder)."""
     from dynaorb.peer import orbslam3
 
     out = root / "runs" / _slug(f"{seq.key}:orbslam3") / str(run)
     spec = {"kind": seq.kind, "path": seq.path, "sensor": seq.sensor, "vocabulary": str(vocabulary)}
+    if realtime:
+        spec["realtime"] = realtime
     reused = reused_record(out, "peer_spec.json", spec, resume)
     if reused is not None:
         return reused
     _start(out, "peer_spec.json", spec)
     try:
-        stats = orbslam3.run(orbslam3.PeerCase(seq.kind, seq.path, seq.sensor, out), python, vocabulary,
+        stats = orbslam3.run(orbslam3.PeerCase(seq.kind, seq.path, seq.sensor, out, realtime), python, vocabulary,
                              timeout_s)
     except Exception as exc:  # e.g. the sequence cannot be read for this sensor: recorded, the bench goes on
         stats = {"error": f"{type(exc).__name__}: {exc}"}
@@ -185,7 +195,7 @@ def _peer_record(seq: Sequence, run: int, root: pathlib.Path, python, vocabulary
         record.update(_metrics(stats))
         record["trajectory"] = str(out / "trajectory.tum")
         record["stats"] = {k: stats.get(k) for k in ("frames", "tracked_frames", "states", "init_s", "exit",
-                                                      "pyorbslam3", "trajectory_poses")}
+                                                      "pyorbslam3", "trajectory_poses", "realtime")}
     return keep_record(out, record)
 
 
@@ -219,8 +229,7 @@ def run_suite(opts: BenchOptions, suite: Suite | None = None, progress=print) ->
             progress(f"rendering {seq.name} (once; cached in {seq.synthetic['out']})")
             ensure_rendered(seq)
     results = {"suite": suite.name, "runs": opts.runs, "started": datetime.datetime.now().isoformat(timespec="seconds"),
-               "machine": machine(), "mapping": "local mapping in its own thread (synchronous_mapping False), "
-                                                "as a live camera runs",
+               "machine": machine(), "mapping": mapping_mode(opts.realtime), "realtime": opts.realtime or None,
                "vocabulary": opts.vocabulary, "not_run": list(suite.not_run),
                "sequences": [dataclasses.asdict(s) for s in suite.sequences], "records": [], "peer": None,
                "finished": None}
@@ -248,12 +257,21 @@ def run_suite(opts: BenchOptions, suite: Suite | None = None, progress=print) ->
                 take(_ours_record(case, run, out / "runs" / _slug(case.key) / str(run), opts))
             if with_peer:
                 progress(f"orbslam3 {key} run {run + 1}/{opts.runs}")
-                take(_peer_record(seq, run, out, peer["python"], peer["vocabulary"], opts.timeout_s, opts.resume))
+                take(_peer_record(seq, run, out, peer["python"], peer["vocabulary"], opts.timeout_s, opts.resume,
+                                  opts.realtime))
             _save(out, results)
     results["finished"] = datetime.datetime.now().isoformat(timespec="seconds")
     _save(out, results)
     report.write(results, out)
     return results
+
+
+def mapping_mode(realtime: float) -> str:
+    """How the runs were made, for the report's header."""
+    pace = (f"frames delivered at {realtime:g}x the recording's rate by their stamps, to both systems (as a "
+            "camera or `rosbag play` delivers them; ORB-SLAM3's example runners pace the same way)"
+            if realtime else "frames handed over as fast as each system's track calls take them")
+    return f"local mapping in its own thread (synchronous_mapping False), as a live camera runs; {pace}"
 
 
 def _save(out: pathlib.Path, results: dict) -> None:

@@ -148,12 +148,23 @@ def cmd_bench(args) -> int:
         if args.readme:
             _write_readme(out)
         return 0
+    if args.realtime and args.suite not in ("quick", "full"):
+        print("dynaorb bench: --realtime paces the quick and full suites' runs; the seeds suite maps "
+              "synchronously and the segmentation suite times the network", file=sys.stderr)
+        return 2
     if args.suite in ("quick", "full"):
         from dynaorb.bench.suite_runner import BenchOptions, run_suite
+        from dynaorb.runner.pacing import Pacer
 
+        if args.realtime:
+            try:
+                Pacer(args.realtime)  # a bad rate refused before any run
+            except ValueError as exc:
+                print(f"dynaorb bench: {exc}", file=sys.stderr)
+                return 2
         run_suite(BenchOptions(suite=args.suite, out=args.out, runs=args.runs or 3, peer=not args.no_peer,
                                peer_venv=args.peer_venv, segment_model=_bench_network(args),
-                               resume=args.resume))
+                               resume=args.resume, realtime=args.realtime))
         print((out / "report.md").read_text())
         if args.readme:
             _write_readme(out)

@@ -169,6 +169,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="seeds: runs at a time (default 1; the runs map synchronously, so their ATE does not "
                         "depend on it)")
     b.add_argument("--no-peer", action="store_true", help="quick/full: without the ORB-SLAM3 comparison")
+    b.add_argument("--realtime", type=float, nargs="?", const=1.0, default=0.0, metavar="RATE",
+                   help="quick/full: deliver the frames to dynaorb and to ORB-SLAM3 alike at RATE times the "
+                        "recording's rate by their stamps (default without the option: as fast as the track "
+                        "calls take them; the option alone: 1, as a camera or `rosbag play` delivers them)")
     b.add_argument("--peer-venv", metavar="DIR",
                    help="virtual environment for pyorbslam3 (default ~/.cache/dynaorb/peer/orbslam3-venv; "
                         "created and installed on first use)")

@@ -283,6 +283,7 @@ class PeerCase:
     path: str
     sensor: str
     out: pathlib.Path
+    realtime: float = 0.0  # > 0: frames paced at this multiple of the recording's rate (the worker's manifest)
 
 
 def prepare(case: PeerCase, vocabulary: pathlib.Path) -> pathlib.Path:
@@ -297,6 +298,8 @@ def prepare(case: PeerCase, vocabulary: pathlib.Path) -> pathlib.Path:
     manifest = {"sensor": case.sensor, "settings": str(out / "settings.yaml"), "vocabulary": str(vocabulary),
                 "frames": frame_list(case.kind, case.path, case.sensor),
                 "trajectory": str(out / "trajectory.tum"), "result": str(out / "peer.json")}
+    if case.realtime:
+        manifest["realtime"] = case.realtime
     (out / "manifest.json").write_text(json.dumps(manifest, indent=1))
     return out / "manifest.json"
 
@@ -317,6 +320,7 @@ def run(case: PeerCase, python: pathlib.Path, vocabulary: pathlib.Path, timeout_
     stats["peak_rss_mb"] = max(v for v in (child.peak_rss_mb, peer.get("peak_rss_mb_self"), 0.0) if v is not None)
     stats.update({k: peer[k] for k in ("pyorbslam3", "frames", "states", "tracked_frames", "init_s",
                                        "track_call_ms_median", "track_call_ms", "trajectory_poses")})
+    stats["realtime"] = peer.get("realtime")
     stats["tracked_fraction"] = peer["tracked_frames"] / max(peer["frames"], 1)
     # Frames over the loop's wall time (image loading included), as dynaorb's runner counts fps.
     stats["fps"] = peer["frames"] / peer["loop_s"] if peer["loop_s"] > 0 else None

@@ -8,7 +8,11 @@ never imports pyorbslam3 (GPL: a measuring stick, run as a separate program).
 
 MANIFEST.json (written by dynaorb.peer.orbslam3): sensor, settings (ORB-SLAM3
 settings file), vocabulary (ORBvoc.txt), frames [{stamp, image, right?,
-depth?}], trajectory (TUM file to write), result (JSON to write).
+depth?}], trajectory (TUM file to write), result (JSON to write), and
+optionally realtime (a rate: each frame is handed over once its stamp, scaled
+by 1 / rate, has passed since the first frame, as ORB-SLAM3's own example
+runners and dynaorb's `--realtime` deliver frames; the pacing is dynaorb's
+runner/pacing.py, a file without imports of dynaorb, loaded by its path).
 
 Each track call is timed with a wall clock, image loading outside the timed
 window (ORB-SLAM3 rectifies stereo pairs inside the call, as dynaorb does).
@@ -19,8 +23,10 @@ converted from its EuRoC file (nanoseconds) to TUM (seconds).
 from __future__ import annotations
 
 import collections
+import importlib.util
 import json
 import os
+import pathlib
 import statistics
 import sys
 import time
@@ -70,6 +76,15 @@ def _version(package: str) -> str | None:
         return None
 
 
+def _pacer(rate):
+    """dynaorb.runner.pacing.Pacer for `rate`, loaded from its file (this program never imports dynaorb)."""
+    path = pathlib.Path(__file__).resolve().parents[1] / "runner" / "pacing.py"
+    spec = importlib.util.spec_from_file_location("dynaorb_pacing", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.Pacer(float(rate))
+
+
 def main(manifest_path: str) -> int:
     manifest = json.load(open(manifest_path))
     import pyorbslam3 as pos
@@ -80,10 +95,13 @@ def main(manifest_path: str) -> int:
     init_s = time.perf_counter() - t0
     per_frame = []
     states = collections.Counter()
+    pacer = _pacer(manifest["realtime"]) if manifest.get("realtime") else None
     loop_start = time.perf_counter()
     for frame in manifest["frames"]:
         image = _read(frame["image"])
         stamp = float(frame["stamp"])
+        if pacer:
+            pacer.wait(stamp)
         if manifest["sensor"] == "stereo":
             right = _read(frame["right"])
             t = time.perf_counter()
@@ -116,6 +134,7 @@ def main(manifest_path: str) -> int:
         "track_call_ms_median": statistics.median(ms) if ms else None,
         "track_call_ms": ms,
         "peak_rss_mb_self": _vm_hwm_mb(),
+        "realtime": pacer.summary() if pacer else None,
         "per_frame": per_frame,
     }
     with open(manifest["result"], "w") as f:
