@@ -98,20 +98,21 @@ def main(manifest_path: str) -> int:
     pacer = _pacer(manifest["realtime"]) if manifest.get("realtime") else None
     loop_start = time.perf_counter()
     for frame in manifest["frames"]:
+        # Every image of the frame is read before the frame is due, as dynaorb's runner loads its frames.
         image = _read(frame["image"])
         stamp = float(frame["stamp"])
-        if pacer:
-            pacer.wait(stamp)
         if manifest["sensor"] == "stereo":
             right = _read(frame["right"])
-            t = time.perf_counter()
-            r = slam.track_stereo(image, right, stamp)
         elif manifest["sensor"] == "rgbd":
             depth = _read(frame["depth"]).astype(np.float32)  # raw units: RGBD.DepthMapFactor scales them
-            t = time.perf_counter()
+        if pacer:
+            pacer.wait(stamp)
+        t = time.perf_counter()
+        if manifest["sensor"] == "stereo":
+            r = slam.track_stereo(image, right, stamp)
+        elif manifest["sensor"] == "rgbd":
             r = slam.track_rgbd(image, depth, stamp)
         else:
-            t = time.perf_counter()
             r = slam.track_monocular(image, stamp)
         ms = 1000.0 * (time.perf_counter() - t)
         state = str(r.state).split(".")[-1]
