@@ -98,7 +98,13 @@ def test_cli_refuses_bad_seed_options_before_running(tmp_path, capsys):
 
     out = tmp_path / "out"
     for extra, says in [(["--seeds", "0"], "one seed S alone: S-S"), (["--sensors", "rgbd,lidar"], "lidar"),
-                        (["--conditions", "full,off"], "include static"), (["--jobs", "0"], "jobs")]:
+                        (["--conditions", "full,off"], "include static"), (["--jobs", "0"], "jobs"),
+                        (["--realtime"], "maps synchronously")]:
         assert main(["bench", "--suite", "seeds", "--out", str(out), *extra]) == 2, extra
         assert says in capsys.readouterr().err
+    assert not out.exists()
+    # The quick / full suites refuse a rate that is not a finite positive number before any run.
+    for rate in ("-1", "nan", "inf"):
+        assert main(["bench", "--suite", "quick", "--realtime", rate, "--out", str(out)]) == 2, rate
+        assert "expected a positive number" in capsys.readouterr().err
     assert not out.exists()
