@@ -1,5 +1,5 @@
-// Shared motion cues: Harris corners tracked by pyramidal LK (DS-SLAM /
-// STDyn-SLAM's optical-flow step) and the ego-motion from the points outside
+// Shared motion cues: Harris (or FAST) corners tracked by pyramidal LK
+// (DS-SLAM / STDyn-SLAM's optical-flow step) and the ego-motion from the points outside
 // the movable-class regions (DM-SLAM Sec. 3.2.3).
 #include "dynaorb/dynamic/motion_cues.h"
 
@@ -11,6 +11,7 @@
 #include <string>
 #include <utility>
 #include <opencv2/calib3d.hpp>
+#include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 
@@ -26,6 +27,9 @@ namespace dynaorb::dynamic {
 
 void MotionCueOptions::read(const cv::FileNode& node) {
   using detail::read_option;
+  read_option(node, "detector", detector);
+  read_option(node, "fast_threshold", fast_threshold);
+  read_option(node, "candidate_fast_threshold", candidate_fast_threshold);
   read_option(node, "max_corners", max_corners);
   read_option(node, "quality_level", quality_level);
   read_option(node, "min_distance", min_distance);
@@ -253,6 +257,54 @@ std::vector<int> pnp_inliers(const std::vector<cv::Point3f>& object, const std::
   return inliers;
 }
 
+// The strongest of `points` at least min_distance apart, at most max_count,
+// picked as goodFeaturesToTrack picks its corners: the strongest first (ties
+// in raster order), a point closer than min_distance to one already taken is
+// skipped; the checks go through a grid of min_distance cells.
+std::vector<cv::Point2f> strongest_apart(std::vector<cv::KeyPoint> points, const cv::Size& size, int max_count,
+                                         double min_distance) {
+  std::sort(points.begin(), points.end(), [](const cv::KeyPoint& a, const cv::KeyPoint& b) {
+    if (a.response != b.response) return a.response > b.response;
+    return a.pt.y != b.pt.y ? a.pt.y < b.pt.y : a.pt.x < b.pt.x;
+  });
+  std::vector<cv::Point2f> out;
+  const int cell = std::max(1, cvRound(min_distance));
+  const int cols = (size.width + cell - 1) / cell, rows = (size.height + cell - 1) / cell;
+  std::vector<std::vector<cv::Point2f>> grid(static_cast<size_t>(cols) * rows);
+  const double d2 = min_distance * min_distance;
+  for (const cv::KeyPoint& k : points) {
+    if (static_cast<int>(out.size()) >= max_count) break;
+    const cv::Point2f p = k.pt;
+    const int cx = std::clamp(static_cast<int>(p.x) / cell, 0, cols - 1);
+    const int cy = std::clamp(static_cast<int>(p.y) / cell, 0, rows - 1);
+    bool good = true;
+    for (int y = std::max(0, cy - 1); good && y <= std::min(rows - 1, cy + 1); ++y)
+      for (int x = std::max(0, cx - 1); good && x <= std::min(cols - 1, cx + 1); ++x)
+        for (const cv::Point2f& q : grid[static_cast<size_t>(y) * cols + x]) {
+          const float dx = p.x - q.x, dy = p.y - q.y;
+          if (dx * dx + dy * dy < d2) {
+            good = false;
+            break;
+          }
+        }
+    if (!good) continue;
+    grid[static_cast<size_t>(cy) * cols + cx].push_back(p);
+    out.push_back(p);
+  }
+  return out;
+}
+
+// FAST corners (non-maximum suppression) of `image` at `threshold` where
+// `mask` is set, at least o.min_distance apart, the strongest first.
+std::vector<cv::Point2f> fast_corners(const cv::Mat& image, const cv::Mat& mask, int threshold,
+                                      const MotionCueOptions& o) {
+  std::vector<cv::KeyPoint> points;
+  cv::FAST(image, points, threshold, true);
+  points.erase(std::remove_if(points.begin(), points.end(), [&](const cv::KeyPoint& k) { return !mask_at(mask, k.pt); }),
+               points.end());
+  return strongest_apart(std::move(points), image.size(), std::max(o.max_corners, 1), std::max(o.min_distance, 0.0));
+}
+
 }  // namespace
 
 std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOptions& o, const cv::Mat& candidates) {
@@ -264,13 +316,19 @@ std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOpti
   cv::Mat detect_mask(grey.size(), CV_8UC1, cv::Scalar(0));
   detect_mask(cv::Rect(border, border, grey.cols - 2 * border, grey.rows - 2 * border)).setTo(255);
   const double quality = std::clamp(o.quality_level, 1e-6, 1.0);
+  const bool fast = o.detector == "fast";
+  // q: the Harris quality level, or the FAST threshold.
   auto detect = [&](const cv::Mat& image, const cv::Mat& mask, double q, std::vector<cv::Point2f>& out) {
-    cv::goodFeaturesToTrack(image, out, std::max(o.max_corners, 1), q, std::max(o.min_distance, 0.0), mask,
-                            std::max(o.block_size, 1), o.use_harris, o.harris_k);
+    if (fast) out = fast_corners(image, mask, static_cast<int>(q), o);
+    else
+      cv::goodFeaturesToTrack(image, out, std::max(o.max_corners, 1), q, std::max(o.min_distance, 0.0), mask,
+                              std::max(o.block_size, 1), o.use_harris, o.harris_k);
   };
-  detect(grey, detect_mask, quality, corners);
+  detect(grey, detect_mask, fast ? o.fast_threshold : quality, corners);
   const bool have_candidates = candidates.type() == CV_8UC1 && candidates.size() == grey.size();
-  if (have_candidates && o.candidate_quality_level > 0 && o.candidate_quality_level < quality) {
+  const bool own = fast ? o.candidate_fast_threshold < o.fast_threshold
+                        : o.candidate_quality_level > 0 && o.candidate_quality_level < quality;
+  if (have_candidates && own) {
     // The candidates' corners come from their own detection.
     const cv::Mat inside = (candidates != 0) & detect_mask;
     const cv::Rect box = cv::boundingRect(inside);
@@ -278,10 +336,10 @@ std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOpti
       corners.erase(std::remove_if(corners.begin(), corners.end(),
                                    [&](const cv::Point2f& p) { return mask_at(candidates, p); }),
                     corners.end());
-      std::vector<cv::Point2f> own;
-      detect(grey(box), inside(box), o.candidate_quality_level, own);
+      std::vector<cv::Point2f> inner;
+      detect(grey(box), inside(box), fast ? o.candidate_fast_threshold : o.candidate_quality_level, inner);
       const cv::Point2f origin(static_cast<float>(box.x), static_cast<float>(box.y));
-      for (const cv::Point2f& p : own) corners.push_back(p + origin);
+      for (const cv::Point2f& p : inner) corners.push_back(p + origin);
     }
   }
   corners = within_background_budget(corners, candidates, grey.size(), o.max_background_corners);
@@ -329,6 +387,9 @@ bool wants_stereo_depth(const FrameData& f, const map::Calibration& calib, Senso
 
 void MotionCueOptions::validate() const {
   const detail::OptionChecks c("Dynamic.motion_cues");
+  if (detector != "harris" && detector != "fast") c.fail("detector", detector, "harris or fast");
+  c.between("fast_threshold", fast_threshold, 0, 255, false);  // FAST's intensity difference
+  c.between("candidate_fast_threshold", candidate_fast_threshold, 0, 255, false);
   c.at_least("max_corners", max_corners, 1);
   c.between("quality_level", quality_level, 0, 1, true);
   if (!(min_distance >= 0)) c.fail("min_distance", min_distance, ">= 0");  // a double: NaN and -0.5 refused

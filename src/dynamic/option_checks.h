@@ -19,6 +19,9 @@ class OptionChecks {
     v << value;
     throw InputError(section_ + " option '" + key + "' is " + v.str() + "; it must be " + rule);
   }
+  [[noreturn]] void fail(const std::string& key, const std::string& value, const std::string& rule) const {
+    throw InputError(section_ + " option '" + key + "' is '" + value + "'; it must be " + rule);
+  }
   // A count (or a whole number of pixels) >= min.
   void at_least(const std::string& key, int value, int min) const {
     if (value < min) fail(key, value, ">= " + std::to_string(min));

@@ -18,6 +18,18 @@
 namespace dynaorb::dynamic {
 
 struct MotionCueOptions {
+  // Which corners are tracked: "harris" (below, the papers' codes) or
+  // "fast": ORB's own FAST corners (cv::FAST with non-maximum suppression,
+  // ORB-SLAM's iniThFAST as fast_threshold; inside the candidates
+  // candidate_fast_threshold, its minThFAST, when lower), the strongest first
+  // at least min_distance apart, at most max_corners of each detection. DM-SLAM
+  // (Sec. 3.2.3-3.2.4) judges the frame's ORB feature points; FAST finds the
+  // same kind of point for a fraction of the Harris response's and the
+  // sub-pixel refinement's cost (set subpix_window 0 with it: FAST corners
+  // are pixel positions).
+  std::string detector = "harris";
+  int fast_threshold = 20;
+  int candidate_fast_threshold = 7;
   // Corners: the goodFeaturesToTrack call of DS-SLAM's released code
   // (Frame::ProcessMovingObject: 1000 corners, quality 0.01, distance 8,
   // block 3, Harris with k = 0.04), the corner detector STDyn-SLAM Sec. III-A
@@ -139,9 +151,10 @@ struct MotionCueCache {
   std::map<std::string, double> ms;
 };
 
-// The corners track_points tracks from an image: goodFeaturesToTrack
-// inside the border (inside `candidates` a detection of their own when
-// candidate_quality_level is set), at most max_background_corners of them outside
+// The corners track_points tracks from an image: goodFeaturesToTrack (or
+// FAST, MotionCueOptions::detector) inside the border (inside `candidates`
+// a detection of their own when candidate_quality_level, or
+// candidate_fast_threshold, is set below the image's), at most max_background_corners of them outside
 // `candidates` (CV_8UC1 of the image's size; else all count as outside),
 // cornerSubPix, near-duplicates removed. May throw cv::Exception on options
 // OpenCV refuses.

@@ -4,9 +4,14 @@
 // and option reading.
 #include <gtest/gtest.h>
 
+#include <opencv2/features2d.hpp>
+
+#include <algorithm>
 #include <functional>
+#include <iterator>
 #include <limits>
 #include <random>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -514,6 +519,84 @@ TEST(MotionCues, CandidatesGetTheirOwnCornerQuality) {
   EXPECT_EQ(detect_corners(grey, own, cv::Mat()), detect_corners(grey, one, cv::Mat()));
 }
 
+// detector: fast. The corners are FAST's own (pixel positions, each a
+// FAST keypoint at the threshold), the strongest first at least min_distance
+// apart; tracked like the Harris corners, they give the same ego-motion.
+TEST(MotionCues, FastCornersAreSpreadFastKeypointsThatTrackLikeHarris) {
+  auto calib = make_calibration(Sensor::kRGBD);
+  Pair p = render_pair(*calib, Sensor::kRGBD);
+  MotionCueOptions o;
+  o.detector = "fast";
+  o.subpix_window = 0;
+  const auto corners = detect_corners(p.prev.grey, o);
+  ASSERT_GT(corners.size(), 150u);
+  std::vector<cv::KeyPoint> fast;
+  cv::FAST(p.prev.grey, fast, o.fast_threshold, true);
+  std::set<std::pair<int, int>> at;
+  for (const auto& k : fast) at.insert({cvRound(k.pt.x), cvRound(k.pt.y)});
+  for (size_t i = 0; i < corners.size(); ++i) {
+    const cv::Point2f& c = corners[i];
+    EXPECT_EQ(c.x, std::round(c.x));
+    EXPECT_EQ(c.y, std::round(c.y));
+    EXPECT_TRUE(at.count({cvRound(c.x), cvRound(c.y)})) << c;
+    EXPECT_GE(std::min({c.x, c.y}), o.border);
+    EXPECT_LE(c.x, calib->width - 1 - o.border);
+    EXPECT_LE(c.y, calib->height - 1 - o.border);
+    for (size_t j = 0; j < i; ++j) ASSERT_GE(cv::norm(c - corners[j]), o.min_distance) << c << corners[j];
+  }
+  // The budget: the strongest come first.
+  MotionCueOptions few = o;
+  few.max_corners = 40;
+  const auto strongest = detect_corners(p.prev.grey, few);
+  ASSERT_EQ(strongest.size(), 40u);
+  EXPECT_TRUE(std::equal(strongest.begin(), strongest.end(), corners.begin()));
+
+  const auto pts = track_points(p.prev, p.cur, *calib, Sensor::kRGBD, o);
+  ASSERT_GT(pts.size(), 100u);
+  int close = 0, with_depth = 0;
+  for (const auto& t : pts) {
+    if (!(t.prev_depth > 0)) continue;
+    ++with_depth;
+    close += cv::norm(t.cur - true_flow(*calib, t.prev, t.prev_depth)) < 0.5;
+  }
+  EXPECT_GT(close, 0.9 * with_depth) << close << " of " << with_depth;
+  const EgoMotion ego = estimate_ego_motion(pts, *calib, Sensor::kRGBD, o);
+  ASSERT_TRUE(ego.valid);
+  EXPECT_LT(rotation_error_deg(ego.T_cur_prev, kMotion), 0.1);
+  EXPECT_LT((ego.T_cur_prev.translation() - kMotion.translation()).norm(), 0.01);
+}
+
+// The low-contrast mover of the test above with FAST: candidate_fast_threshold
+// below fast_threshold gives the candidates a detection of their own.
+TEST(MotionCues, FastCandidatesGetTheirOwnThreshold) {
+  auto calib = make_calibration(Sensor::kRGBD);
+  Pair p = render_pair(*calib, Sensor::kRGBD);
+  const cv::Rect patch(380, 150, 180, 220);
+  cv::Mat grey = p.prev.grey.clone();
+  cv::Mat part;
+  grey(patch).convertTo(part, CV_8U, 0.1, 0.9 * cv::mean(grey(patch))[0]);
+  part.copyTo(grey(patch));
+  const cv::Rect mover(patch.x + 10, patch.y + 10, patch.width - 20, patch.height - 20);
+  cv::Mat candidates = cv::Mat::zeros(grey.size(), CV_8UC1);
+  candidates(mover).setTo(255);
+  const auto inside = [&](const cv::Point2f& c) { return mover.contains(cv::Point(cvRound(c.x), cvRound(c.y))); };
+  MotionCueOptions one;
+  one.detector = "fast";
+  one.subpix_window = 0;
+  one.candidate_fast_threshold = one.fast_threshold;  // one detection
+  MotionCueOptions own = one;
+  own.candidate_fast_threshold = 3;
+  const auto a = detect_corners(grey, one, candidates), b = detect_corners(grey, own, candidates);
+  std::vector<cv::Point2f> a_out, b_out;
+  std::copy_if(a.begin(), a.end(), std::back_inserter(a_out), [&](const cv::Point2f& c) { return !inside(c); });
+  std::copy_if(b.begin(), b.end(), std::back_inserter(b_out), [&](const cv::Point2f& c) { return !inside(c); });
+  const long a_in = std::count_if(a.begin(), a.end(), inside), b_in = std::count_if(b.begin(), b.end(), inside);
+  EXPECT_LE(a_in, 3);
+  EXPECT_GE(b_in, 30);
+  EXPECT_EQ(a_out, b_out);
+  EXPECT_EQ(detect_corners(grey, own, cv::Mat()), detect_corners(grey, one, cv::Mat()));
+}
+
 TEST(MotionCues, DegenerateInputGivesNothingAndNeverThrows) {
   auto calib = make_calibration(Sensor::kRGBD);
   Pair p = render_pair(*calib, Sensor::kRGBD);
@@ -592,7 +675,8 @@ TEST(MotionCues, OptionsReadFromYaml) {
   cv::FileStorage fs(
       "%YAML:1.0\nmotion:\n  max_corners: 500\n  use_harris: 0\n  border: 5\n  forward_backward_max: 0.5\n"
       "  stereo_depth_forward_backward_max: 0.25\n  max_background_corners: 200\n"
-      "  candidate_quality_level: 0.002\n"
+      "  candidate_quality_level: 0.002\n  detector: fast\n  fast_threshold: 25\n"
+      "  candidate_fast_threshold: 9\n"
       "bad:\n  max_corners: many\n",
       cv::FileStorage::READ | cv::FileStorage::MEMORY);
   MotionCueOptions o;
@@ -604,6 +688,9 @@ TEST(MotionCues, OptionsReadFromYaml) {
   EXPECT_DOUBLE_EQ(o.stereo_depth_forward_backward_max, 0.25);
   EXPECT_EQ(o.max_background_corners, 200);
   EXPECT_DOUBLE_EQ(o.candidate_quality_level, 0.002);
+  EXPECT_EQ(o.detector, "fast");
+  EXPECT_EQ(o.fast_threshold, 25);
+  EXPECT_EQ(o.candidate_fast_threshold, 9);
   EXPECT_DOUBLE_EQ(o.quality_level, 0.01);  // missing: default kept
   EXPECT_EQ(o.min_ego_points, 12);
   MotionCueOptions b;
@@ -637,6 +724,9 @@ TEST(MotionCues, OptionsOutOfRangeAreRefusedByName) {
       {"ransac_confidence", [](MotionCueOptions& o) { o.ransac_confidence = 1; }},
       {"min_ego_points", [](MotionCueOptions& o) { o.min_ego_points = 4; }},
       {"max_background_corners", [](MotionCueOptions& o) { o.max_background_corners = -5; }},
+      {"detector", [](MotionCueOptions& o) { o.detector = "sift"; }},
+      {"fast_threshold", [](MotionCueOptions& o) { o.fast_threshold = 0; }},
+      {"candidate_fast_threshold", [](MotionCueOptions& o) { o.candidate_fast_threshold = 255; }},
   };
   for (const auto& [key, change] : bad) {
     MotionCueOptions o;
