@@ -34,10 +34,9 @@ constexpr int kFastMargin = 3;      // FAST's circle radius
 constexpr int kCellSize = 30;
 constexpr int kDescriptorBytes = 32;
 
-// Per-thread buffers reused across calls (left and right images are often
-// extracted on two threads with two extractors).
+// Per-thread buffers reused across calls (left and right images, or the
+// levels of one image, are often extracted on two threads).
 struct Scratch {
-  std::vector<std::vector<cv::KeyPoint>> level_kps;  // kept keypoints, level pixels
   std::vector<cv::KeyPoint> cell_kps;
   std::vector<unsigned char> cell_found;
   std::vector<int> keep;
@@ -221,6 +220,20 @@ void OrbExtractor::extract(const cv::Mat& image, const cv::Mat& exclude,
 }
 
 OrbDetection OrbExtractor::detect(const cv::Mat& image) const {
+  OrbDetection d = start(image);
+  for (int level = 0; level < n_levels(); ++level) detect_level(d, level);
+  return d;
+}
+
+void OrbExtractor::describe(OrbDetection&& d, const cv::Mat& exclude, std::vector<cv::KeyPoint>& keypoints,
+                            cv::Mat& descriptors, ExcludedCount* count) {
+  check_detection(d, exclude);
+  const cv::Mat* region = count_region(exclude, count);
+  for (int level = 0; level < n_levels(); ++level) describe_level(d, level, exclude, region);
+  finish(std::move(d), keypoints, descriptors, count);
+}
+
+OrbDetection OrbExtractor::start(const cv::Mat& image) const {
   check_image(image);
   // 1. Pyramid. Each level is resized from the previous one (bilinear), as
   // ORB-SLAM2 does, to the size of level 0 divided by s^i. Fresh buffers every
@@ -230,6 +243,10 @@ OrbDetection OrbExtractor::detect(const cv::Mat& image) const {
   d.pyramid.assign(L, cv::Mat());
   d.blurred.assign(L, cv::Mat());
   d.corners.assign(L, {});
+  d.kept.assign(L, {});
+  d.descriptors.assign(L, cv::Mat());
+  d.excluded_corners.assign(L, 0);
+  d.excluded_keypoints.assign(L, 0);
   d.pyramid[0] = image.clone();
   for (int i = 1; i < L; ++i) {
     const cv::Size sz(cvRound(image.cols * inv_scale_[i]), cvRound(image.rows * inv_scale_[i]));
@@ -239,138 +256,188 @@ OrbDetection OrbExtractor::detect(const cv::Mat& image) const {
     }
     cv::resize(d.pyramid[i - 1], d.pyramid[i], sz, 0, 0, cv::INTER_LINEAR);
   }
-
-  Scratch& s = t_scratch;
-  for (int level = 0; level < L; ++level) {
-    const cv::Mat& img = d.pyramid[level];
-    const LevelArea a(img);
-    if (!a.usable()) continue;
-    const int b = a.b, max_x = a.max_x, max_y = a.max_y;
-
-    // 2. FAST with the initial threshold over the whole detection area, then
-    // binned in ~30x30 cells; cells with no corner are searched again with the
-    // minimum threshold (ORB-SLAM's per-cell iniThFAST/minThFAST rule).
-    std::vector<cv::KeyPoint>& cand = d.corners[level];
-    cv::FAST(img(cv::Rect(b, b, max_x - b, max_y - b)), cand, settings_.ini_th_fast, true);
-    const int n_cols = std::max(1, a.det_w / kCellSize), n_rows = std::max(1, a.det_h / kCellSize);
-    const int cell_w = (a.det_w + n_cols - 1) / n_cols, cell_h = (a.det_h + n_rows - 1) / n_rows;
-    const int x0 = b + kFastMargin, y0 = b + kFastMargin;  // first detectable pixel
-    s.cell_found.assign(static_cast<size_t>(n_cols) * n_rows, 0);
-    for (cv::KeyPoint& k : cand) {
-      k.pt.x += b;
-      k.pt.y += b;
-      const int cx = std::min(n_cols - 1, (cvRound(k.pt.x) - x0) / cell_w);
-      const int cy = std::min(n_rows - 1, (cvRound(k.pt.y) - y0) / cell_h);
-      s.cell_found[cy * n_cols + cx] = 1;
-    }
-    for (int cy = 0; cy < n_rows; ++cy) {
-      for (int cx = 0; cx < n_cols; ++cx) {
-        if (s.cell_found[cy * n_cols + cx]) continue;
-        // Cell [xa, xe) x [ya, ye) of detectable pixels, plus FAST's margin.
-        const int xa = x0 + cx * cell_w, xe = std::min(xa + cell_w, max_x - kFastMargin);
-        const int ya = y0 + cy * cell_h, ye = std::min(ya + cell_h, max_y - kFastMargin);
-        if (xe <= xa || ye <= ya) continue;
-        const cv::Rect r(xa - kFastMargin, ya - kFastMargin, xe - xa + 2 * kFastMargin,
-                         ye - ya + 2 * kFastMargin);
-        s.cell_kps.clear();
-        cv::FAST(img(r), s.cell_kps, settings_.min_th_fast, true);
-        for (cv::KeyPoint& k : s.cell_kps) {
-          k.pt.x += r.x;
-          k.pt.y += r.y;
-          cand.push_back(k);
-        }
-      }
-    }
-    // The descriptors' image: the level blurred by a 7x7 Gaussian (sigma 2).
-    cv::GaussianBlur(img, d.blurred[level], cv::Size(7, 7), 2, 2, cv::BORDER_REFLECT_101);
-  }
   return d;
 }
 
-void OrbExtractor::describe(OrbDetection&& d, const cv::Mat& exclude, std::vector<cv::KeyPoint>& keypoints,
-                            cv::Mat& descriptors, ExcludedCount* count) {
-  const int L = n_levels();
-  if (static_cast<int>(d.pyramid.size()) != L || static_cast<int>(d.blurred.size()) != L ||
-      static_cast<int>(d.corners.size()) != L || d.pyramid[0].empty())
-    throw std::invalid_argument("OrbExtractor::describe: the detection is not one of this extractor's");
+void OrbExtractor::detect_level(OrbDetection& d, int level) const {
+  check_level(d, level);
+  Scratch& s = t_scratch;
+  const cv::Mat& img = d.pyramid[level];
+  const LevelArea a(img);
+  if (!a.usable()) return;
+  const int b = a.b, max_x = a.max_x, max_y = a.max_y;
+
+  // 2. FAST with the initial threshold over the whole detection area, then
+  // binned in ~30x30 cells; cells with no corner are searched again with the
+  // minimum threshold (ORB-SLAM's per-cell iniThFAST/minThFAST rule).
+  std::vector<cv::KeyPoint>& cand = d.corners[level];
+  cand.clear();
+  cv::FAST(img(cv::Rect(b, b, max_x - b, max_y - b)), cand, settings_.ini_th_fast, true);
+  const int n_cols = std::max(1, a.det_w / kCellSize), n_rows = std::max(1, a.det_h / kCellSize);
+  const int cell_w = (a.det_w + n_cols - 1) / n_cols, cell_h = (a.det_h + n_rows - 1) / n_rows;
+  const int x0 = b + kFastMargin, y0 = b + kFastMargin;  // first detectable pixel
+  s.cell_found.assign(static_cast<size_t>(n_cols) * n_rows, 0);
+  for (cv::KeyPoint& k : cand) {
+    k.pt.x += b;
+    k.pt.y += b;
+    const int cx = std::min(n_cols - 1, (cvRound(k.pt.x) - x0) / cell_w);
+    const int cy = std::min(n_rows - 1, (cvRound(k.pt.y) - y0) / cell_h);
+    s.cell_found[cy * n_cols + cx] = 1;
+  }
+  for (int cy = 0; cy < n_rows; ++cy) {
+    for (int cx = 0; cx < n_cols; ++cx) {
+      if (s.cell_found[cy * n_cols + cx]) continue;
+      // Cell [xa, xe) x [ya, ye) of detectable pixels, plus FAST's margin.
+      const int xa = x0 + cx * cell_w, xe = std::min(xa + cell_w, max_x - kFastMargin);
+      const int ya = y0 + cy * cell_h, ye = std::min(ya + cell_h, max_y - kFastMargin);
+      if (xe <= xa || ye <= ya) continue;
+      const cv::Rect r(xa - kFastMargin, ya - kFastMargin, xe - xa + 2 * kFastMargin,
+                       ye - ya + 2 * kFastMargin);
+      s.cell_kps.clear();
+      cv::FAST(img(r), s.cell_kps, settings_.min_th_fast, true);
+      for (cv::KeyPoint& k : s.cell_kps) {
+        k.pt.x += r.x;
+        k.pt.y += r.y;
+        cand.push_back(k);
+      }
+    }
+  }
+  // The descriptors' image: the level blurred by a 7x7 Gaussian (sigma 2).
+  cv::GaussianBlur(img, d.blurred[level], cv::Size(7, 7), 2, 2, cv::BORDER_REFLECT_101);
+}
+
+void OrbExtractor::describe_level(OrbDetection& d, int level, const cv::Mat& exclude,
+                                  const cv::Mat* count_region) const {
+  check_level(d, level);
   check_exclude(exclude, d.pyramid[0].size());
+  if (count_region && (exclude.empty() || count_region->type() != CV_8UC1 || count_region->size() != exclude.size()))
+    count_region = nullptr;
+  Scratch& s = t_scratch;
+  std::vector<cv::KeyPoint>& out = d.kept[level];
+  out.clear();
+  d.descriptors[level].release();
+  d.excluded_corners[level] = d.excluded_keypoints[level] = 0;
+  const cv::Mat& img = d.pyramid[level];
+  const LevelArea a(img);
+  if (!a.usable() || features_per_level_[level] == 0) return;
+  const int b = a.b, max_x = a.max_x, max_y = a.max_y;
+  std::vector<cv::KeyPoint>& cand = d.corners[level];
+
+  // 3a. Drop the corners whose level-0 position is excluded.
+  const float sc = scale_[level];
+  if (!exclude.empty()) {
+    auto at = [&](const cv::Mat& m, const cv::KeyPoint& k) {
+      const int u = std::clamp(cvRound(k.pt.x * sc), 0, m.cols - 1);
+      const int v = std::clamp(cvRound(k.pt.y * sc), 0, m.rows - 1);
+      return m.at<uchar>(v, u) != 0;
+    };
+    if (count_region) {
+      int dropped = 0;
+      for (const cv::KeyPoint& k : cand) dropped += at(exclude, k) && at(*count_region, k);
+      d.excluded_corners[level] = dropped;
+      if (dropped > 0) {
+        // What the level would have kept without the exclusion.
+        detail::distribute_quadtree(cand, static_cast<float>(b), static_cast<float>(max_x),
+                                    static_cast<float>(b), static_cast<float>(max_y),
+                                    features_per_level_[level], s.quadtree, s.keep);
+        for (int idx : s.keep) d.excluded_keypoints[level] += at(*count_region, cand[idx]);
+      }
+    }
+    cand.erase(std::remove_if(cand.begin(), cand.end(), [&](const cv::KeyPoint& k) { return at(exclude, k); }),
+               cand.end());
+  }
+
+  // 3b. Quadtree distribution over the FAST area.
+  detail::distribute_quadtree(cand, static_cast<float>(b), static_cast<float>(max_x),
+                              static_cast<float>(b), static_cast<float>(max_y),
+                              features_per_level_[level], s.quadtree, s.keep);
+
+  // 4. Orientation on the (unblurred) level image.
+  const float size = kPatchSize * sc;
+  out.reserve(s.keep.size());
+  for (int idx : s.keep) {
+    cv::KeyPoint k = cand[idx];
+    k.octave = level;
+    k.size = size;
+    k.angle = ic_angle(img, cvRound(k.pt.x), cvRound(k.pt.y), umax_);
+    out.push_back(k);
+  }
+
+  // 5. Descriptors on the blurred level.
+  cv::Mat& desc = d.descriptors[level];
+  desc = cv::Mat(static_cast<int>(out.size()), kDescriptorBytes, CV_8U);
+  for (size_t i = 0; i < out.size(); ++i)
+    describe_keypoint(d.blurred[level], cvRound(out[i].pt.x), cvRound(out[i].pt.y), out[i].angle,
+                      desc.ptr<uchar>(static_cast<int>(i)));
+}
+
+void OrbExtractor::finish(OrbDetection&& d, std::vector<cv::KeyPoint>& keypoints, cv::Mat& descriptors,
+                          ExcludedCount* count) {
+  check_detection(d, cv::Mat());
+  const int L = n_levels();
   if (count) {
     count->corners = count->keypoints = 0;
-    if (exclude.empty() || count->region.type() != CV_8UC1 || count->region.size() != exclude.size()) count = nullptr;
+    for (int level = 0; level < L; ++level) {
+      count->corners += d.excluded_corners[level];
+      count->keypoints += d.excluded_keypoints[level];
+    }
   }
-
-  Scratch& s = t_scratch;
-  s.level_kps.resize(L);
+  // The levels in order, the keypoints in level-0 coordinates.
   int total = 0;
-  for (int level = 0; level < L; ++level) {
-    std::vector<cv::KeyPoint>& out = s.level_kps[level];
-    out.clear();
-    const cv::Mat& img = d.pyramid[level];
-    const LevelArea a(img);
-    if (!a.usable() || features_per_level_[level] == 0) continue;
-    const int b = a.b, max_x = a.max_x, max_y = a.max_y;
-    std::vector<cv::KeyPoint>& cand = d.corners[level];
-
-    // 3a. Drop the corners whose level-0 position is excluded.
-    const float sc = scale_[level];
-    if (!exclude.empty()) {
-      auto at = [&](const cv::Mat& m, const cv::KeyPoint& k) {
-        const int u = std::clamp(cvRound(k.pt.x * sc), 0, m.cols - 1);
-        const int v = std::clamp(cvRound(k.pt.y * sc), 0, m.rows - 1);
-        return m.at<uchar>(v, u) != 0;
-      };
-      if (count) {
-        int dropped = 0;
-        for (const cv::KeyPoint& k : cand) dropped += at(exclude, k) && at(count->region, k);
-        count->corners += dropped;
-        if (dropped > 0) {
-          // What the level would have kept without the exclusion.
-          detail::distribute_quadtree(cand, static_cast<float>(b), static_cast<float>(max_x),
-                                      static_cast<float>(b), static_cast<float>(max_y),
-                                      features_per_level_[level], s.quadtree, s.keep);
-          for (int idx : s.keep) count->keypoints += at(count->region, cand[idx]);
-        }
-      }
-      cand.erase(std::remove_if(cand.begin(), cand.end(), [&](const cv::KeyPoint& k) { return at(exclude, k); }),
-                 cand.end());
-    }
-
-    // 3b. Quadtree distribution over the FAST area.
-    detail::distribute_quadtree(cand, static_cast<float>(b), static_cast<float>(max_x),
-                                static_cast<float>(b), static_cast<float>(max_y),
-                                features_per_level_[level], s.quadtree, s.keep);
-
-    // 4. Orientation on the (unblurred) level image.
-    const float size = kPatchSize * sc;
-    out.reserve(s.keep.size());
-    for (int idx : s.keep) {
-      cv::KeyPoint k = cand[idx];
-      k.octave = level;
-      k.size = size;
-      k.angle = ic_angle(img, cvRound(k.pt.x), cvRound(k.pt.y), umax_);
-      out.push_back(k);
-    }
-    total += static_cast<int>(out.size());
-  }
-  pyramid_ = std::move(d.pyramid);
-
-  // 5. Descriptors on the blurred level, then the keypoints go to level-0
-  // coordinates.
+  for (int level = 0; level < L; ++level) total += static_cast<int>(d.kept[level].size());
   keypoints.clear();
   keypoints.reserve(total);
   descriptors = cv::Mat(total, kDescriptorBytes, CV_8U);
   int row = 0;
   for (int level = 0; level < L; ++level) {
-    const std::vector<cv::KeyPoint>& kps = s.level_kps[level];
+    const std::vector<cv::KeyPoint>& kps = d.kept[level];
     if (kps.empty()) continue;
     const float sc = scale_[level];
+    d.descriptors[level].copyTo(descriptors.rowRange(row, row + static_cast<int>(kps.size())));
+    row += static_cast<int>(kps.size());
     for (const cv::KeyPoint& k : kps) {
-      describe_keypoint(d.blurred[level], cvRound(k.pt.x), cvRound(k.pt.y), k.angle, descriptors.ptr<uchar>(row++));
       cv::KeyPoint k0 = k;
       k0.pt *= sc;
       keypoints.push_back(k0);
     }
   }
+  pyramid_ = std::move(d.pyramid);
+}
+
+std::vector<std::vector<int>> OrbExtractor::level_groups(int groups) const {
+  groups = std::max(groups, 1);
+  std::vector<std::vector<int>> out(static_cast<size_t>(groups));
+  std::vector<double> area(static_cast<size_t>(groups), 0.0);
+  // Levels from the largest down, each to the group with the least area so far.
+  for (int level = 0; level < n_levels(); ++level) {
+    const size_t g = static_cast<size_t>(std::min_element(area.begin(), area.end()) - area.begin());
+    out[g].push_back(level);
+    area[g] += static_cast<double>(inv_sigma2_[level]);
+  }
+  return out;
+}
+
+void OrbExtractor::check_detection(const OrbDetection& d, const cv::Mat& exclude) const {
+  const size_t L = static_cast<size_t>(n_levels());
+  if (d.pyramid.size() != L || d.blurred.size() != L || d.corners.size() != L || d.kept.size() != L ||
+      d.descriptors.size() != L || d.excluded_corners.size() != L || d.excluded_keypoints.size() != L ||
+      d.pyramid[0].empty())
+    throw std::invalid_argument("OrbExtractor::describe: the detection is not one of this extractor's");
+  check_exclude(exclude, d.pyramid[0].size());
+}
+
+void OrbExtractor::check_level(const OrbDetection& d, int level) const {
+  check_detection(d, cv::Mat());
+  if (level < 0 || level >= n_levels())
+    throw std::invalid_argument("OrbExtractor: level " + std::to_string(level) + " is not one of the " +
+                                std::to_string(n_levels()) + " pyramid levels");
+}
+
+const cv::Mat* OrbExtractor::count_region(const cv::Mat& exclude, ExcludedCount* count) {
+  if (!count) return nullptr;
+  count->corners = count->keypoints = 0;
+  if (exclude.empty() || count->region.type() != CV_8UC1 || count->region.size() != exclude.size()) return nullptr;
+  return &count->region;
 }
 
 }  // namespace dynaorb::features

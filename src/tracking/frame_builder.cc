@@ -44,7 +44,22 @@ std::shared_ptr<map::Features> FrameBuilder::extract(features::OrbExtractor& ext
   auto f = std::make_shared<map::Features>();
   f->calib = calib_;
   const auto t0 = Clock::now();
-  extractor.extract(grey, exclude, f->keys, f->descriptors, count);
+  // The pyramid levels split between this thread and the helper (idle for
+  // mono and RGB-D, which have no right image): the same features as one
+  // OrbExtractor::extract call.
+  features::OrbDetection d = extractor.start(grey);
+  const std::vector<std::vector<int>> groups = extractor.level_groups(2);
+  const cv::Mat* region = count ? &count->region : nullptr;
+  const auto levels = [&](const std::vector<int>& which) {
+    for (int level : which) {
+      extractor.detect_level(d, level);
+      extractor.describe_level(d, level, exclude, region);
+    }
+  };
+  HelperThread::Job other = helper_.submit([&] { levels(groups[1]); });
+  levels(groups[0]);
+  other.get();
+  extractor.finish(std::move(d), f->keys, f->descriptors, count);
   t["extract"] = ms_since(t0);
   f->u_right.assign(f->keys.size(), -1.0f);
   f->depth.assign(f->keys.size(), -1.0f);

@@ -32,6 +32,12 @@ struct OrbDetection {
   std::vector<cv::Mat> pyramid;                    // level 0 = a copy of the image
   std::vector<cv::Mat> blurred;                    // 7x7 Gaussian, sigma 2, per level
   std::vector<std::vector<cv::KeyPoint>> corners;  // per level, in level pixels
+  // What OrbExtractor::describe_level leaves per level for finish(): the
+  // kept keypoints (level pixels, oriented), their descriptors, and what the
+  // exclusion cost there (ExcludedCount's corners and keypoints).
+  std::vector<std::vector<cv::KeyPoint>> kept;
+  std::vector<cv::Mat> descriptors;
+  std::vector<int> excluded_corners, excluded_keypoints;
 };
 
 class OrbExtractor {
@@ -54,6 +60,24 @@ class OrbExtractor {
   void describe(OrbDetection&& detection, const cv::Mat& exclude, std::vector<cv::KeyPoint>& keypoints,
                 cv::Mat& descriptors, ExcludedCount* count = nullptr);
 
+  // extract() level by level, for a caller that spreads the levels over
+  // threads: start() builds the pyramid; detect_level() then
+  // describe_level() do one level (FAST, blur; exclusion, quadtree,
+  // orientation, descriptors), and different levels may run on different
+  // threads at once (each writes only its own level of the detection);
+  // finish() gathers the levels in order. The same keypoints, descriptors
+  // and count as extract(). count_region: ExcludedCount::region, or nullptr
+  // for no count (as is a count whose region is not of the mask's size).
+  OrbDetection start(const cv::Mat& image) const;
+  void detect_level(OrbDetection& detection, int level) const;
+  void describe_level(OrbDetection& detection, int level, const cv::Mat& exclude,
+                      const cv::Mat* count_region = nullptr) const;
+  void finish(OrbDetection&& detection, std::vector<cv::KeyPoint>& keypoints, cv::Mat& descriptors,
+              ExcludedCount* count = nullptr);
+  // The levels in two groups of about equal pixel area (what FAST and the
+  // blur cost), for two threads.
+  std::vector<std::vector<int>> level_groups(int groups = 2) const;
+
   // The keypoint budget of later extractions (nFeatures), spread over the
   // levels as at construction.
   void set_n_features(int n);
@@ -69,6 +93,13 @@ class OrbExtractor {
   const std::vector<float>& inv_level_sigma2() const { return inv_sigma2_; }
 
  private:
+  // std::invalid_argument for a detection of another extractor's pyramid,
+  // an exclusion mask of another size, a level out of range.
+  void check_detection(const OrbDetection& d, const cv::Mat& exclude) const;
+  void check_level(const OrbDetection& d, int level) const;
+  // The count's region where it can be counted (zeroing the count), else nullptr.
+  static const cv::Mat* count_region(const cv::Mat& exclude, ExcludedCount* count);
+
   ExtractorSettings settings_;
   std::vector<float> scale_, inv_scale_, sigma2_, inv_sigma2_;
   std::vector<int> features_per_level_;

@@ -1,6 +1,7 @@
 #pragma once
 // Turns images into Features: ORB extraction (left and right in parallel for
-// stereo, the right image on a HelperThread), keypoint undistortion, stereo
+// stereo, the right image on a HelperThread; for mono and RGB-D the pyramid
+// levels split between the calling thread and the HelperThread), keypoint undistortion, stereo
 // matching along rectified rows or the RGB-D virtual right coordinate from
 // depth, and the search grid.
 #include <functional>
@@ -81,7 +82,9 @@ class FrameBuilder {
   features::OrbExtractor left_, right_, init_;
   int n_features_;
   double right_budget_max_factor_;
-  HelperThread helper_;  // the stereo right image's extraction (or description)
+  // The stereo right image's extraction (or description); for mono and
+  // RGB-D half of the pyramid levels.
+  HelperThread helper_;
 };
 
 }  // namespace dynaorb::tracking

@@ -9,6 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
+#include <thread>
 #include <vector>
 
 #include "../test_util.h"
@@ -322,6 +323,66 @@ TEST(OrbExtractor, DetectThenDescribeIsExtract) {
   EXPECT_THROW(two.describe(OrbExtractor(fewer).detect(img), cv::Mat(), k2, d2), std::invalid_argument);
   EXPECT_THROW(two.describe(two.detect(img), cv::Mat(10, 10, CV_8U), k2, d2), std::invalid_argument);
   EXPECT_THROW(two.detect(cv::Mat()), std::invalid_argument);
+}
+
+// The levels spread over two threads (FrameBuilder's mono / RGB-D
+// extraction): start(), then detect_level() and describe_level() per level
+// on either thread, then finish() give extract()'s keypoints, descriptors and
+// count, bit for bit.
+TEST(OrbExtractor, LevelsOnTwoThreadsAreExtract) {
+  DYNAORB_REQUIRE_SHARED();
+  const cv::Mat img = kitti_image();
+  ASSERT_FALSE(img.empty());
+  cv::Mat exclude = cv::Mat::zeros(img.size(), CV_8U);
+  exclude(cv::Rect(300, 50, 400, 250)).setTo(255);
+  features::ExcludedCount c1, c2;
+  c1.region = c2.region = exclude;
+  OrbExtractor one(settings(2000)), two(settings(2000));
+  std::vector<cv::KeyPoint> k1, k2;
+  cv::Mat d1, d2;
+  one.extract(img, exclude, k1, d1, &c1);
+
+  const std::vector<std::vector<int>> groups = two.level_groups(2);
+  ASSERT_EQ(groups.size(), 2u);
+  std::vector<int> all;
+  double area[2] = {0, 0};
+  for (int g = 0; g < 2; ++g)
+    for (int level : groups[g]) {
+      all.push_back(level);
+      area[g] += two.inv_level_sigma2()[level];
+    }
+  std::sort(all.begin(), all.end());
+  ASSERT_EQ(all, std::vector<int>({0, 1, 2, 3, 4, 5, 6, 7}));
+  EXPECT_LT(std::abs(area[0] - area[1]), 0.15 * (area[0] + area[1]));  // even halves
+
+  features::OrbDetection d = two.start(img);
+  const auto run = [&](const std::vector<int>& levels) {
+    for (int level : levels) {
+      two.detect_level(d, level);
+      two.describe_level(d, level, exclude, &c2.region);
+    }
+  };
+  std::thread other([&] { run(groups[1]); });
+  run(groups[0]);
+  other.join();
+  two.finish(std::move(d), k2, d2, &c2);
+  ASSERT_GT(k1.size(), 1500u);
+  ASSERT_EQ(k1.size(), k2.size());
+  for (size_t i = 0; i < k1.size(); ++i) {
+    EXPECT_EQ(k1[i].pt, k2[i].pt);
+    EXPECT_EQ(k1[i].octave, k2[i].octave);
+    EXPECT_EQ(k1[i].angle, k2[i].angle);
+  }
+  EXPECT_EQ(cv::norm(d1, d2, cv::NORM_HAMMING), 0.0);
+  EXPECT_GT(c1.keypoints, 100);
+  EXPECT_EQ(c1.keypoints, c2.keypoints);
+  EXPECT_EQ(c1.corners, c2.corners);
+  for (size_t l = 0; l < one.pyramid().size(); ++l)
+    EXPECT_EQ(cv::norm(one.pyramid()[l], two.pyramid()[l], cv::NORM_INF), 0.0);
+  // A level out of range is refused by name.
+  features::OrbDetection e = two.start(img);
+  EXPECT_THROW(two.detect_level(e, 8), std::invalid_argument);
+  EXPECT_THROW(two.describe_level(e, -1, cv::Mat()), std::invalid_argument);
 }
 
 TEST(OrbExtractor, KeepsEarlierPyramidsIntact) {
