@@ -239,14 +239,20 @@ TEST(DynamicFilterOptions, ShippedPresetsLoad) {
   const DynamicFilterOptions full = DynamicFilterOptions::load((dir / "full.yaml").string());
   EXPECT_EQ(full.stages_for(Sensor::kRGBD), (std::vector<std::string>{"semantic", "dm"}));
   // full's per-sensor motion cues: RGB-D and mono track forward only, RGB-D
-  // detects the candidates' corners with their own quality; stereo keeps the
-  // common cues.
-  EXPECT_EQ(full.motion_cues_for(Sensor::kRGBD).forward_backward_max, 0);
+  // tracks FAST corners (one threshold, no sub-pixel refinement); stereo and
+  // mono keep Harris corners and the common cues.
+  const MotionCueOptions& rgbd = full.motion_cues_for(Sensor::kRGBD);
+  EXPECT_EQ(rgbd.forward_backward_max, 0);
   EXPECT_EQ(full.motion_cues_for(Sensor::kMono).forward_backward_max, 0);
   EXPECT_EQ(full.motion_cues_for(Sensor::kStereo).forward_backward_max, MotionCueOptions().forward_backward_max);
-  EXPECT_DOUBLE_EQ(full.motion_cues_for(Sensor::kRGBD).candidate_quality_level, 0.001);
-  EXPECT_LE(full.motion_cues_for(Sensor::kStereo).candidate_quality_level, 0);
-  EXPECT_LE(full.motion_cues_for(Sensor::kMono).candidate_quality_level, 0);
+  EXPECT_EQ(rgbd.detector, "fast");
+  EXPECT_EQ(rgbd.fast_threshold, 20);
+  EXPECT_EQ(rgbd.candidate_fast_threshold, 20);
+  EXPECT_EQ(rgbd.subpix_window, 0);
+  for (Sensor s : {Sensor::kStereo, Sensor::kMono}) {
+    EXPECT_EQ(full.motion_cues_for(s).detector, "harris");
+    EXPECT_LE(full.motion_cues_for(s).candidate_quality_level, 0);
+  }
   EXPECT_FALSE(DynamicFilterOptions::load((dir / "off.yaml").string()).enabled(Sensor::kRGBD));
   EXPECT_EQ(DynamicFilterOptions::load((dir / "ddl.yaml").string()).keyframes, 15);
 }
