@@ -37,6 +37,7 @@ void MotionCueOptions::read(const cv::FileNode& node) {
   read_option(node, "use_harris", use_harris);
   read_option(node, "harris_k", harris_k);
   read_option(node, "max_background_corners", max_background_corners);
+  read_option(node, "max_candidate_corners", max_candidate_corners);
   read_option(node, "candidate_quality_level", candidate_quality_level);
   read_option(node, "subpix_window", subpix_window);
   read_option(node, "lk_window", lk_window);
@@ -113,29 +114,39 @@ void refine_corners(const cv::Mat& grey, std::vector<cv::Point2f>& corners, int 
   });
 }
 
-// At most `budget` of the corners outside `candidates`, spread over the
-// image: a grid of about `budget` square cells; each round takes the next
-// strongest corner of every cell (goodFeaturesToTrack returns them strongest
-// first) until the budget is spent. Corners inside the candidates all stay.
+// At most `budget` of the corners on one side of `candidates` (outside, or
+// inside with `inside`), spread over the image: a grid of about `budget`
+// square cells over the side's bounding box; each round takes the next
+// strongest corner of every cell (the detections return them strongest
+// first) until the budget is spent. The corners on the other side all stay.
 // The order of the input is kept.
-std::vector<cv::Point2f> within_background_budget(const std::vector<cv::Point2f>& corners, const cv::Mat& candidates,
-                                                  const cv::Size& size, int budget) {
+std::vector<cv::Point2f> within_budget(const std::vector<cv::Point2f>& corners, const cv::Mat& candidates,
+                                       const cv::Size& size, int budget, bool inside) {
   const bool have_mask = candidates.type() == CV_8UC1 && candidates.size() == size;
-  std::vector<size_t> background;
+  if (inside && !have_mask) return corners;  // no candidates: nothing inside
+  std::vector<size_t> side;
   for (size_t i = 0; i < corners.size(); ++i)
-    if (!(have_mask && mask_at(candidates, corners[i]))) background.push_back(i);
-  if (budget <= 0 || static_cast<int>(background.size()) <= budget) return corners;
-  const double cell = std::max(1.0, std::sqrt(static_cast<double>(size.area()) / budget));
-  const int cols = std::max(1, static_cast<int>(std::ceil(size.width / cell)));
-  const int rows = std::max(1, static_cast<int>(std::ceil(size.height / cell)));
+    if ((have_mask && mask_at(candidates, corners[i])) == inside) side.push_back(i);
+  if (budget <= 0 || static_cast<int>(side.size()) <= budget) return corners;
+  cv::Rect2f box(0, 0, static_cast<float>(size.width), static_cast<float>(size.height));
+  if (inside) {
+    std::vector<cv::Point2f> pts;
+    for (size_t i : side) pts.push_back(corners[i]);
+    box = cv::boundingRect(pts);
+    box.width = std::max(box.width, 1.f);
+    box.height = std::max(box.height, 1.f);
+  }
+  const double cell = std::max(1.0, std::sqrt(static_cast<double>(box.area()) / budget));
+  const int cols = std::max(1, static_cast<int>(std::ceil(box.width / cell)));
+  const int rows = std::max(1, static_cast<int>(std::ceil(box.height / cell)));
   std::vector<std::vector<size_t>> cells(static_cast<size_t>(cols) * rows);
-  for (size_t i : background) {
-    const int cx = std::clamp(static_cast<int>(corners[i].x / cell), 0, cols - 1);
-    const int cy = std::clamp(static_cast<int>(corners[i].y / cell), 0, rows - 1);
+  for (size_t i : side) {
+    const int cx = std::clamp(static_cast<int>((corners[i].x - box.x) / cell), 0, cols - 1);
+    const int cy = std::clamp(static_cast<int>((corners[i].y - box.y) / cell), 0, rows - 1);
     cells[static_cast<size_t>(cy) * cols + cx].push_back(i);
   }
   std::vector<unsigned char> keep(corners.size(), 1);
-  for (size_t i : background) keep[i] = 0;
+  for (size_t i : side) keep[i] = 0;
   int left = budget;
   for (size_t round = 0; left > 0; ++round) {
     bool any = false;
@@ -342,7 +353,8 @@ std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOpti
       for (const cv::Point2f& p : inner) corners.push_back(p + origin);
     }
   }
-  corners = within_background_budget(corners, candidates, grey.size(), o.max_background_corners);
+  corners = within_budget(corners, candidates, grey.size(), o.max_background_corners, /*inside=*/false);
+  corners = within_budget(corners, candidates, grey.size(), o.max_candidate_corners, /*inside=*/true);
   if (!corners.empty() && o.subpix_window > 0) {
     refine_corners(grey, corners, o.subpix_window);
     corners = without_duplicates(corners, std::max(1.0, o.min_distance / 2));
@@ -396,6 +408,7 @@ void MotionCueOptions::validate() const {
   c.at_least("block_size", block_size, 1);
   if (use_harris) c.between("harris_k", harris_k, 0, 1, false);
   c.at_least("max_background_corners", max_background_corners, 0);
+  c.at_least("max_candidate_corners", max_candidate_corners, 0);
   if (std::isnan(candidate_quality_level) || candidate_quality_level >= quality_level)
     c.fail("candidate_quality_level", candidate_quality_level, "in (0, quality_level) to be used, or <= 0 (off)");
   c.at_least("subpix_window", subpix_window, 0);

@@ -48,6 +48,11 @@ struct MotionCueOptions {
   // tracks. Chosen evenly over the image: a grid of about this many cells,
   // the strongest corner of each cell first. 0: all (the papers' codes).
   int max_background_corners = 0;
+  // Ours: the same for the corners inside the candidates, spread over the
+  // candidates' bounding box. Every one of them is judged (DM-SLAM's
+  // offsets, STDyn's epipolar distances) and votes for its object, which
+  // needs a few points per object, not hundreds. 0: all.
+  int max_candidate_corners = 0;
   // Ours: inside the candidates, corners down to this quality relative to
   // the strongest corner inside them (a second goodFeaturesToTrack over the
   // candidates only), instead of quality_level relative to the whole image's
@@ -155,7 +160,8 @@ struct MotionCueCache {
 // FAST, MotionCueOptions::detector) inside the border (inside `candidates`
 // a detection of their own when candidate_quality_level, or
 // candidate_fast_threshold, is set below the image's), at most max_background_corners of them outside
-// `candidates` (CV_8UC1 of the image's size; else all count as outside),
+// `candidates` (CV_8UC1 of the image's size; else all count as outside) and
+// max_candidate_corners inside,
 // cornerSubPix, near-duplicates removed. May throw cv::Exception on options
 // OpenCV refuses.
 std::vector<cv::Point2f> detect_corners(const cv::Mat& grey, const MotionCueOptions& o,

@@ -460,11 +460,30 @@ TEST(MotionCues, BackgroundBudgetKeepsCandidateCornersAndSpreadsTheRest) {
   for (int q : quadrant)
     EXPECT_GE(q, 15) << quadrant[0] << " " << quadrant[1] << " " << quadrant[2] << " " << quadrant[3];
 
+  // The same inside the candidates: at most max_candidate_corners there,
+  // spread over them, the corners outside untouched.
+  MotionCueOptions in = all;
+  in.max_candidate_corners = 12;
+  const auto fewer_in = detect_corners(p.prev.grey, in, candidates);
+  std::vector<cv::Point2f> every_out, fewer_out, kept_in;
+  for (const auto& c : every)
+    if (!inside(c)) every_out.push_back(c);
+  for (const auto& c : fewer_in) (inside(c) ? kept_in : fewer_out).push_back(c);
+  EXPECT_EQ(fewer_out, every_out);
+  EXPECT_NEAR(static_cast<double>(kept_in.size()), 12.0, 2.0);
+  int half[2] = {0, 0};  // left and right half of the candidates' box
+  for (const auto& c : kept_in) ++half[c.x >= 280 ? 1 : 0];
+  EXPECT_GE(std::min(half[0], half[1]), 3) << half[0] << " " << half[1];
+
   // A budget no detection can exceed, or no candidates mask with no budget:
   // the same corners as without the option.
   MotionCueOptions large;
   large.max_background_corners = large.max_corners;
+  large.max_candidate_corners = large.max_corners;
   EXPECT_EQ(detect_corners(p.prev.grey, large, candidates), every);
+  MotionCueOptions no_mask = all;
+  no_mask.max_candidate_corners = 5;
+  EXPECT_EQ(detect_corners(p.prev.grey, no_mask, cv::Mat()), detect_corners(p.prev.grey, all));
   EXPECT_EQ(detect_corners(p.prev.grey, all, cv::Mat()), detect_corners(p.prev.grey, all));
 
   // track_points applies the budget with prev.candidates; the ego-motion
@@ -676,7 +695,7 @@ TEST(MotionCues, OptionsReadFromYaml) {
       "%YAML:1.0\nmotion:\n  max_corners: 500\n  use_harris: 0\n  border: 5\n  forward_backward_max: 0.5\n"
       "  stereo_depth_forward_backward_max: 0.25\n  max_background_corners: 200\n"
       "  candidate_quality_level: 0.002\n  detector: fast\n  fast_threshold: 25\n"
-      "  candidate_fast_threshold: 9\n"
+      "  candidate_fast_threshold: 9\n  max_candidate_corners: 150\n"
       "bad:\n  max_corners: many\n",
       cv::FileStorage::READ | cv::FileStorage::MEMORY);
   MotionCueOptions o;
@@ -691,6 +710,7 @@ TEST(MotionCues, OptionsReadFromYaml) {
   EXPECT_EQ(o.detector, "fast");
   EXPECT_EQ(o.fast_threshold, 25);
   EXPECT_EQ(o.candidate_fast_threshold, 9);
+  EXPECT_EQ(o.max_candidate_corners, 150);
   EXPECT_DOUBLE_EQ(o.quality_level, 0.01);  // missing: default kept
   EXPECT_EQ(o.min_ego_points, 12);
   MotionCueOptions b;
@@ -724,6 +744,7 @@ TEST(MotionCues, OptionsOutOfRangeAreRefusedByName) {
       {"ransac_confidence", [](MotionCueOptions& o) { o.ransac_confidence = 1; }},
       {"min_ego_points", [](MotionCueOptions& o) { o.min_ego_points = 4; }},
       {"max_background_corners", [](MotionCueOptions& o) { o.max_background_corners = -5; }},
+      {"max_candidate_corners", [](MotionCueOptions& o) { o.max_candidate_corners = -1; }},
       {"detector", [](MotionCueOptions& o) { o.detector = "sift"; }},
       {"fast_threshold", [](MotionCueOptions& o) { o.fast_threshold = 0; }},
       {"candidate_fast_threshold", [](MotionCueOptions& o) { o.candidate_fast_threshold = 255; }},
