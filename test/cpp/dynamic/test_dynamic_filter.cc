@@ -239,8 +239,9 @@ TEST(DynamicFilterOptions, ShippedPresetsLoad) {
   const DynamicFilterOptions full = DynamicFilterOptions::load((dir / "full.yaml").string());
   EXPECT_EQ(full.stages_for(Sensor::kRGBD), (std::vector<std::string>{"semantic", "dm"}));
   // full's per-sensor motion cues: RGB-D and mono track forward only, RGB-D
-  // tracks FAST corners (one threshold, no sub-pixel refinement); stereo and
-  // mono keep Harris corners and the common cues.
+  // tracks FAST corners (one threshold, no sub-pixel refinement, at most 300
+  // inside the candidates); stereo and mono keep Harris corners and the
+  // common cues.
   const MotionCueOptions& rgbd = full.motion_cues_for(Sensor::kRGBD);
   EXPECT_EQ(rgbd.forward_backward_max, 0);
   EXPECT_EQ(full.motion_cues_for(Sensor::kMono).forward_backward_max, 0);
@@ -249,8 +250,10 @@ TEST(DynamicFilterOptions, ShippedPresetsLoad) {
   EXPECT_EQ(rgbd.fast_threshold, 20);
   EXPECT_EQ(rgbd.candidate_fast_threshold, 20);
   EXPECT_EQ(rgbd.subpix_window, 0);
+  EXPECT_EQ(rgbd.max_candidate_corners, 300);
   for (Sensor s : {Sensor::kStereo, Sensor::kMono}) {
     EXPECT_EQ(full.motion_cues_for(s).detector, "harris");
+    EXPECT_EQ(full.motion_cues_for(s).max_candidate_corners, 0);
     EXPECT_LE(full.motion_cues_for(s).candidate_quality_level, 0);
   }
   EXPECT_FALSE(DynamicFilterOptions::load((dir / "off.yaml").string()).enabled(Sensor::kRGBD));
