@@ -331,9 +331,11 @@ def render(results: dict, out: pathlib.Path, plots: dict | None = None, stages_p
              "Where the dynamic filter runs beside the ORB corner detection (Dynamic.overlap_extraction), "
              "*extract* is what the extraction adds after the filter and *extract_overlapped* the detection's "
              "own time on its worker thread (not in the sum). The motion cues' corners of the next frame "
-             "(goodFeaturesToTrack, cornerSubPix) and, for stereo, their depth by LK into the right image are "
+             "(Harris: goodFeaturesToTrack, cornerSubPix; or FAST, Dynamic.motion_cues.detector, which `full` "
+             "uses for RGB-D) and, for stereo, their depth by LK into the right image are "
              "found beside the stages on the filter's worker thread: *corners_ahead (worker)* and "
-             "*stereo_ahead (worker)*, not in the sum; they take the second core from the rest.",
+             "*stereo_ahead (worker)*, not in the sum; they take the second core from the rest, which mono and "
+             "RGB-D also use for half of the ORB pyramid levels (in *extract*).",
              "- fps: frames over the whole loop's wall time (image loading included). Peak MB: the run's process "
              "(VmHWM of its own address space), for ORB-SLAM3 the worker's python process.",
              "- ATE: evo, SE3 alignment (Sim3 for monocular), RMSE of the position error; RPE per frame.",
