@@ -499,43 +499,71 @@ TEST(MotionCues, BackgroundBudgetKeepsCandidateCornersAndSpreadsTheRest) {
 }
 
 // A low-contrast mover (its texture at 10 % contrast) in a view with strong
-// corners elsewhere: one detection over the image finds almost no corners on
-// it, so none of its points could be judged. With candidate_quality_level
-// the candidates get their own detection; the background keeps its corners.
+// corners elsewhere, with candidates that stop short of the patch's outline
+// (whose step against the full-contrast room would be the strongest corner
+// inside them).
+struct LowContrastMover {
+  cv::Mat grey, candidates;
+  cv::Rect mover;
+  LowContrastMover() {
+    auto calib = make_calibration(Sensor::kRGBD);
+    Pair p = render_pair(*calib, Sensor::kRGBD);
+    const cv::Rect patch(380, 150, 180, 220);
+    grey = p.prev.grey.clone();
+    cv::Mat part;
+    grey(patch).convertTo(part, CV_8U, 0.1, 0.9 * cv::mean(grey(patch))[0]);
+    part.copyTo(grey(patch));
+    mover = cv::Rect(patch.x + 10, patch.y + 10, patch.width - 20, patch.height - 20);
+    candidates = cv::Mat::zeros(grey.size(), CV_8UC1);
+    candidates(mover).setTo(255);
+  }
+  // detect_corners with `o`, split into the corners on the mover and the rest.
+  void detect(const MotionCueOptions& o, std::vector<cv::Point2f>& in, std::vector<cv::Point2f>& out) const {
+    for (const auto& c : detect_corners(grey, o, candidates))
+      (mover.contains(cv::Point(cvRound(c.x), cvRound(c.y))) ? in : out).push_back(c);
+  }
+};
+
+// One detection over the image finds almost no corners on the mover, so none
+// of its points could be judged. With candidate_quality_level the candidates
+// get their own detection; the background keeps its corners.
 TEST(MotionCues, CandidatesGetTheirOwnCornerQuality) {
-  auto calib = make_calibration(Sensor::kRGBD);
-  Pair p = render_pair(*calib, Sensor::kRGBD);
-  const cv::Rect patch(380, 150, 180, 220);
-  cv::Mat grey = p.prev.grey.clone();
-  cv::Mat part;
-  grey(patch).convertTo(part, CV_8U, 0.1, 0.9 * cv::mean(grey(patch))[0]);
-  part.copyTo(grey(patch));
-  // The candidates stop short of the patch's outline, whose step against
-  // the full-contrast room would be the strongest corner inside them.
-  const cv::Rect mover(patch.x + 10, patch.y + 10, patch.width - 20, patch.height - 20);
-  cv::Mat candidates = cv::Mat::zeros(grey.size(), CV_8UC1);
-  candidates(mover).setTo(255);
-  const auto inside = [&](const cv::Point2f& c) { return mover.contains(cv::Point(cvRound(c.x), cvRound(c.y))); };
-  const auto split = [&](const std::vector<cv::Point2f>& corners, std::vector<cv::Point2f>& in,
-                         std::vector<cv::Point2f>& out) {
-    for (const auto& c : corners) (inside(c) ? in : out).push_back(c);
-  };
+  const LowContrastMover m;
   MotionCueOptions one;
   one.subpix_window = 0;  // the detections themselves
   std::vector<cv::Point2f> one_in, one_out;
-  split(detect_corners(grey, one, candidates), one_in, one_out);
+  m.detect(one, one_in, one_out);
   MotionCueOptions own = one;
   own.candidate_quality_level = 0.001;
   std::vector<cv::Point2f> own_in, own_out;
-  split(detect_corners(grey, own, candidates), own_in, own_out);
+  m.detect(own, own_in, own_out);
   EXPECT_LE(one_in.size(), 3u);  // measured: 0 and 148
   EXPECT_GE(own_in.size(), 30u);
   EXPECT_EQ(own_out, one_out);
   // Not below quality_level, or without candidates: one detection, as before.
   MotionCueOptions higher = one;
   higher.candidate_quality_level = 0.05;
-  EXPECT_EQ(detect_corners(grey, higher, candidates), detect_corners(grey, one, candidates));
-  EXPECT_EQ(detect_corners(grey, own, cv::Mat()), detect_corners(grey, one, cv::Mat()));
+  EXPECT_EQ(detect_corners(m.grey, higher, m.candidates), detect_corners(m.grey, one, m.candidates));
+  EXPECT_EQ(detect_corners(m.grey, own, cv::Mat()), detect_corners(m.grey, one, cv::Mat()));
+}
+
+// The same with FAST: candidate_fast_threshold below fast_threshold gives the
+// candidates a detection of their own.
+TEST(MotionCues, FastCandidatesGetTheirOwnThreshold) {
+  const LowContrastMover m;
+  MotionCueOptions one;
+  one.detector = "fast";
+  one.subpix_window = 0;
+  one.candidate_fast_threshold = one.fast_threshold;  // one detection
+  MotionCueOptions own = one;
+  own.candidate_fast_threshold = 3;
+  std::vector<cv::Point2f> one_in, one_out, own_in, own_out;
+  m.detect(one, one_in, one_out);
+  m.detect(own, own_in, own_out);
+  EXPECT_LE(one_in.size(), 3u);
+  EXPECT_GE(own_in.size(), 30u);
+  EXPECT_EQ(own_out, one_out);
+  EXPECT_EQ(detect_corners(m.grey, own, cv::Mat()), detect_corners(m.grey, one, cv::Mat()));
 }
 
 // detector: fast. The corners are FAST's own (pixel positions, each a
@@ -583,37 +611,6 @@ TEST(MotionCues, FastCornersAreSpreadFastKeypointsThatTrackLikeHarris) {
   ASSERT_TRUE(ego.valid);
   EXPECT_LT(rotation_error_deg(ego.T_cur_prev, kMotion), 0.1);
   EXPECT_LT((ego.T_cur_prev.translation() - kMotion.translation()).norm(), 0.01);
-}
-
-// The low-contrast mover of the test above with FAST: candidate_fast_threshold
-// below fast_threshold gives the candidates a detection of their own.
-TEST(MotionCues, FastCandidatesGetTheirOwnThreshold) {
-  auto calib = make_calibration(Sensor::kRGBD);
-  Pair p = render_pair(*calib, Sensor::kRGBD);
-  const cv::Rect patch(380, 150, 180, 220);
-  cv::Mat grey = p.prev.grey.clone();
-  cv::Mat part;
-  grey(patch).convertTo(part, CV_8U, 0.1, 0.9 * cv::mean(grey(patch))[0]);
-  part.copyTo(grey(patch));
-  const cv::Rect mover(patch.x + 10, patch.y + 10, patch.width - 20, patch.height - 20);
-  cv::Mat candidates = cv::Mat::zeros(grey.size(), CV_8UC1);
-  candidates(mover).setTo(255);
-  const auto inside = [&](const cv::Point2f& c) { return mover.contains(cv::Point(cvRound(c.x), cvRound(c.y))); };
-  MotionCueOptions one;
-  one.detector = "fast";
-  one.subpix_window = 0;
-  one.candidate_fast_threshold = one.fast_threshold;  // one detection
-  MotionCueOptions own = one;
-  own.candidate_fast_threshold = 3;
-  const auto a = detect_corners(grey, one, candidates), b = detect_corners(grey, own, candidates);
-  std::vector<cv::Point2f> a_out, b_out;
-  std::copy_if(a.begin(), a.end(), std::back_inserter(a_out), [&](const cv::Point2f& c) { return !inside(c); });
-  std::copy_if(b.begin(), b.end(), std::back_inserter(b_out), [&](const cv::Point2f& c) { return !inside(c); });
-  const long a_in = std::count_if(a.begin(), a.end(), inside), b_in = std::count_if(b.begin(), b.end(), inside);
-  EXPECT_LE(a_in, 3);
-  EXPECT_GE(b_in, 30);
-  EXPECT_EQ(a_out, b_out);
-  EXPECT_EQ(detect_corners(grey, own, cv::Mat()), detect_corners(grey, one, cv::Mat()));
 }
 
 TEST(MotionCues, DegenerateInputGivesNothingAndNeverThrows) {

@@ -286,42 +286,61 @@ TEST(OrbExtractor, ExcludeMaskMovesTheBudgetElsewhere) {
   for (size_t i = 0; i < all.size(); ++i) EXPECT_EQ(same[i].pt, all[i].pt);
 }
 
+// One extraction of a KITTI image with an exclusion mask, to compare the
+// two-step paths against: `one` ran extract() with 2000 features.
+struct Reference {
+  cv::Mat img, exclude;
+  OrbExtractor one{settings(2000)};
+  std::vector<cv::KeyPoint> keys;
+  cv::Mat desc;
+  features::ExcludedCount count;
+  Reference() : img(kitti_image()) {
+    if (img.empty()) return;
+    exclude = cv::Mat::zeros(img.size(), CV_8U);
+    exclude(cv::Rect(300, 50, 400, 250)).setTo(255);
+    count.region = exclude;
+    one.extract(img, exclude, keys, desc, &count);
+  }
+  // `two` made keys / desc / count: the same as extract()'s, bit for bit.
+  void expect_same(const OrbExtractor& two, const std::vector<cv::KeyPoint>& k2, const cv::Mat& d2,
+                   const features::ExcludedCount& c2) const {
+    ASSERT_EQ(keys.size(), k2.size());
+    ASSERT_GT(keys.size(), 1500u);
+    for (size_t i = 0; i < keys.size(); ++i) {
+      EXPECT_EQ(keys[i].pt, k2[i].pt);
+      EXPECT_EQ(keys[i].octave, k2[i].octave);
+      EXPECT_EQ(keys[i].angle, k2[i].angle);
+    }
+    EXPECT_EQ(cv::norm(desc, d2, cv::NORM_HAMMING), 0.0);
+    EXPECT_GT(count.keypoints, 100);
+    EXPECT_EQ(count.keypoints, c2.keypoints);
+    EXPECT_EQ(count.corners, c2.corners);
+    for (size_t l = 0; l < one.pyramid().size(); ++l)
+      EXPECT_EQ(cv::norm(one.pyramid()[l], two.pyramid()[l], cv::NORM_INF), 0.0);
+  }
+};
+
 // detect() then describe() gives extract()'s keypoints and descriptors, with
 // the mask and the budget given only to describe() (the tracking thread
 // computes the mask while another thread detects), and the same count.
 TEST(OrbExtractor, DetectThenDescribeIsExtract) {
   DYNAORB_REQUIRE_SHARED();
-  const cv::Mat img = kitti_image();
-  ASSERT_FALSE(img.empty());
-  cv::Mat exclude = cv::Mat::zeros(img.size(), CV_8U);
-  exclude(cv::Rect(300, 50, 400, 250)).setTo(255);
-  features::ExcludedCount c1, c2;
-  c1.region = c2.region = exclude;
-  OrbExtractor one(settings(2000)), two(settings(1000));
-  std::vector<cv::KeyPoint> k1, k2;
-  cv::Mat d1, d2;
-  one.extract(img, exclude, k1, d1, &c1);
-  features::OrbDetection det = two.detect(img);
+  const Reference ref;
+  ASSERT_FALSE(ref.img.empty());
+  features::ExcludedCount c2;
+  c2.region = ref.exclude;
+  OrbExtractor two(settings(1000));
+  std::vector<cv::KeyPoint> k2;
+  cv::Mat d2;
+  features::OrbDetection det = two.detect(ref.img);
   two.set_n_features(2000);  // the budget in force at describe() counts
-  two.describe(std::move(det), exclude, k2, d2, &c2);
-  ASSERT_EQ(k1.size(), k2.size());
-  ASSERT_GT(k1.size(), 1500u);
-  for (size_t i = 0; i < k1.size(); ++i) {
-    EXPECT_EQ(k1[i].pt, k2[i].pt);
-    EXPECT_EQ(k1[i].octave, k2[i].octave);
-    EXPECT_EQ(k1[i].angle, k2[i].angle);
-  }
-  EXPECT_EQ(cv::norm(d1, d2, cv::NORM_HAMMING), 0.0);
-  EXPECT_GT(c1.keypoints, 100);
-  EXPECT_EQ(c1.keypoints, c2.keypoints);
-  EXPECT_EQ(c1.corners, c2.corners);
-  for (size_t l = 0; l < one.pyramid().size(); ++l)
-    EXPECT_EQ(cv::norm(one.pyramid()[l], two.pyramid()[l], cv::NORM_INF), 0.0);
+  two.describe(std::move(det), ref.exclude, k2, d2, &c2);
+  ref.expect_same(two, k2, d2, c2);
   // A detection of another pyramid, or a mask of another size, is refused.
   ExtractorSettings fewer = settings(1000);
   fewer.n_levels = 4;
-  EXPECT_THROW(two.describe(OrbExtractor(fewer).detect(img), cv::Mat(), k2, d2), std::invalid_argument);
-  EXPECT_THROW(two.describe(two.detect(img), cv::Mat(10, 10, CV_8U), k2, d2), std::invalid_argument);
+  EXPECT_THROW(two.describe(OrbExtractor(fewer).detect(ref.img), cv::Mat(), k2, d2), std::invalid_argument);
+  EXPECT_THROW(two.describe(two.detect(ref.img), cv::Mat(10, 10, CV_8U), k2, d2), std::invalid_argument);
   EXPECT_THROW(two.detect(cv::Mat()), std::invalid_argument);
 }
 
@@ -331,17 +350,9 @@ TEST(OrbExtractor, DetectThenDescribeIsExtract) {
 // count, bit for bit.
 TEST(OrbExtractor, LevelsOnTwoThreadsAreExtract) {
   DYNAORB_REQUIRE_SHARED();
-  const cv::Mat img = kitti_image();
-  ASSERT_FALSE(img.empty());
-  cv::Mat exclude = cv::Mat::zeros(img.size(), CV_8U);
-  exclude(cv::Rect(300, 50, 400, 250)).setTo(255);
-  features::ExcludedCount c1, c2;
-  c1.region = c2.region = exclude;
-  OrbExtractor one(settings(2000)), two(settings(2000));
-  std::vector<cv::KeyPoint> k1, k2;
-  cv::Mat d1, d2;
-  one.extract(img, exclude, k1, d1, &c1);
-
+  const Reference ref;
+  ASSERT_FALSE(ref.img.empty());
+  OrbExtractor two(settings(2000));
   const std::vector<std::vector<int>> groups = two.level_groups(2);
   ASSERT_EQ(groups.size(), 2u);
   std::vector<int> all;
@@ -355,32 +366,24 @@ TEST(OrbExtractor, LevelsOnTwoThreadsAreExtract) {
   ASSERT_EQ(all, std::vector<int>({0, 1, 2, 3, 4, 5, 6, 7}));
   EXPECT_LT(std::abs(area[0] - area[1]), 0.15 * (area[0] + area[1]));  // even halves
 
-  features::OrbDetection d = two.start(img);
+  features::ExcludedCount c2;
+  c2.region = ref.exclude;
+  features::OrbDetection d = two.start(ref.img);
   const auto run = [&](const std::vector<int>& levels) {
     for (int level : levels) {
       two.detect_level(d, level);
-      two.describe_level(d, level, exclude, &c2.region);
+      two.describe_level(d, level, ref.exclude, &c2.region);
     }
   };
   std::thread other([&] { run(groups[1]); });
   run(groups[0]);
   other.join();
+  std::vector<cv::KeyPoint> k2;
+  cv::Mat d2;
   two.finish(std::move(d), k2, d2, &c2);
-  ASSERT_GT(k1.size(), 1500u);
-  ASSERT_EQ(k1.size(), k2.size());
-  for (size_t i = 0; i < k1.size(); ++i) {
-    EXPECT_EQ(k1[i].pt, k2[i].pt);
-    EXPECT_EQ(k1[i].octave, k2[i].octave);
-    EXPECT_EQ(k1[i].angle, k2[i].angle);
-  }
-  EXPECT_EQ(cv::norm(d1, d2, cv::NORM_HAMMING), 0.0);
-  EXPECT_GT(c1.keypoints, 100);
-  EXPECT_EQ(c1.keypoints, c2.keypoints);
-  EXPECT_EQ(c1.corners, c2.corners);
-  for (size_t l = 0; l < one.pyramid().size(); ++l)
-    EXPECT_EQ(cv::norm(one.pyramid()[l], two.pyramid()[l], cv::NORM_INF), 0.0);
-  // A level out of range is refused by name.
-  features::OrbDetection e = two.start(img);
+  ref.expect_same(two, k2, d2, c2);
+  // A level out of range is refused.
+  features::OrbDetection e = two.start(ref.img);
   EXPECT_THROW(two.detect_level(e, 8), std::invalid_argument);
   EXPECT_THROW(two.describe_level(e, -1, cv::Mat()), std::invalid_argument);
 }
