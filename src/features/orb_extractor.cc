@@ -227,8 +227,9 @@ OrbDetection OrbExtractor::detect(const cv::Mat& image) const {
 
 void OrbExtractor::describe(OrbDetection&& d, const cv::Mat& exclude, std::vector<cv::KeyPoint>& keypoints,
                             cv::Mat& descriptors, ExcludedCount* count) {
-  check_detection(d, exclude);
-  const cv::Mat* region = count_region(exclude, count);
+  // describe_level checks the detection, the mask and the count's region;
+  // finish sets the count (0 where the region cannot be counted).
+  const cv::Mat* region = count ? &count->region : nullptr;
   for (int level = 0; level < n_levels(); ++level) describe_level(d, level, exclude, region);
   finish(std::move(d), keypoints, descriptors, count);
 }
@@ -373,7 +374,7 @@ void OrbExtractor::describe_level(OrbDetection& d, int level, const cv::Mat& exc
 
 void OrbExtractor::finish(OrbDetection&& d, std::vector<cv::KeyPoint>& keypoints, cv::Mat& descriptors,
                           ExcludedCount* count) {
-  check_detection(d, cv::Mat());
+  check_detection(d);
   const int L = n_levels();
   if (count) {
     count->corners = count->keypoints = 0;
@@ -417,27 +418,19 @@ std::vector<std::vector<int>> OrbExtractor::level_groups(int groups) const {
   return out;
 }
 
-void OrbExtractor::check_detection(const OrbDetection& d, const cv::Mat& exclude) const {
+void OrbExtractor::check_detection(const OrbDetection& d) const {
   const size_t L = static_cast<size_t>(n_levels());
   if (d.pyramid.size() != L || d.blurred.size() != L || d.corners.size() != L || d.kept.size() != L ||
       d.descriptors.size() != L || d.excluded_corners.size() != L || d.excluded_keypoints.size() != L ||
       d.pyramid[0].empty())
     throw std::invalid_argument("OrbExtractor::describe: the detection is not one of this extractor's");
-  check_exclude(exclude, d.pyramid[0].size());
 }
 
 void OrbExtractor::check_level(const OrbDetection& d, int level) const {
-  check_detection(d, cv::Mat());
+  check_detection(d);
   if (level < 0 || level >= n_levels())
     throw std::invalid_argument("OrbExtractor: level " + std::to_string(level) + " is not one of the " +
                                 std::to_string(n_levels()) + " pyramid levels");
-}
-
-const cv::Mat* OrbExtractor::count_region(const cv::Mat& exclude, ExcludedCount* count) {
-  if (!count) return nullptr;
-  count->corners = count->keypoints = 0;
-  if (exclude.empty() || count->region.type() != CV_8UC1 || count->region.size() != exclude.size()) return nullptr;
-  return &count->region;
 }
 
 }  // namespace dynaorb::features

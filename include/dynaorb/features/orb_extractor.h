@@ -93,12 +93,10 @@ class OrbExtractor {
   const std::vector<float>& inv_level_sigma2() const { return inv_sigma2_; }
 
  private:
-  // std::invalid_argument for a detection of another extractor's pyramid,
-  // an exclusion mask of another size, a level out of range.
-  void check_detection(const OrbDetection& d, const cv::Mat& exclude) const;
+  // std::invalid_argument for a detection of another extractor's pyramid, a
+  // level out of range (describe_level checks the exclusion mask's size).
+  void check_detection(const OrbDetection& d) const;
   void check_level(const OrbDetection& d, int level) const;
-  // The count's region where it can be counted (zeroing the count), else nullptr.
-  static const cv::Mat* count_region(const cv::Mat& exclude, ExcludedCount* count);
 
   ExtractorSettings settings_;
   std::vector<float> scale_, inv_scale_, sigma2_, inv_sigma2_;
