@@ -408,6 +408,7 @@ struct System::Impl {
         case Sensor::kRGBD: f = builder->rgbd(grey, depth_m, m, t, &count); break;
       }
     }
+    if (filter) filter->start_corners_ahead();  // the worker's core was the extraction's until now
     r.dynamic_keypoints = count.keypoints;
     r.stage_ms.insert(t.begin(), t.end());
     track_features(std::move(f), stamp, r);

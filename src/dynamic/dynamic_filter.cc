@@ -305,6 +305,7 @@ void DynamicFilter::settle_pending() {
 FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eigen::Isometry3d>& T_cw_predicted) {
   const auto t_start = Clock::now();
   settle_pending();
+  start_corners_ahead();  // the last frame's, when its caller did not start them
   FilterResult res;
   current.dynamic.release();
   current.candidates.release();
@@ -323,13 +324,15 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
   Context ctx{sensor_, calib_, current, previous, cv::Mat::zeros(size, CV_8UC1), nullptr, nullptr,
               T_cw_predicted, &keyframes_};
   // This frame is the next one's previous frame: its corners are detected
-  // now, beside this frame's stages and SLAM's work on it, once the stages
-  // before the first one using the cues (the semantic prior) have set its
-  // candidates, which the corner budget reads. Only while the frames need
-  // the cues (a stage may decline them, e.g. DM without candidate regions):
-  // else the detection would take a core from this frame's stages for
-  // nothing. A frame that needs them after one that did not detects its
-  // previous frame's corners itself (the same corners).
+  // ahead, on the cache's worker thread, once the stages before the first
+  // one using the cues (the semantic prior) have set its candidates, which
+  // the corner budget reads. Only while the frames need the cues (a stage may
+  // decline them, e.g. DM without candidate regions): else the detection
+  // would take a core from this frame's work for nothing. A frame that needs
+  // them after one that did not detects its previous frame's corners itself
+  // (the same corners). The detection is only prepared here and started by
+  // start_corners_ahead(), once the frame's ORB features are extracted
+  // (dynamic_filter.h says why).
   bool ahead_started = false;
   const MotionCueOptions& cues = o_.motion_cues_for(sensor_);
   std::vector<TrackedPoint> tracked;
@@ -338,8 +341,7 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
     const std::string name = stage->name();
     if (!ahead_started && stage->needs_motion_cues()) {
       ahead_started = true;
-      if (calib_ && cues_last_frame_)
-        detect_corners_ahead(current, *calib_, sensor_, cues, motion_cue_cache_);
+      if (calib_ && cues_last_frame_) ahead_pending_ = std::make_shared<const FrameData>(current);
     }
     if (!res.motion_cues && stage->needs_motion_cues() && stage->needs_motion_cues_for(ctx)) {
       const auto t0 = Clock::now();
@@ -400,6 +402,12 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
   return res;
 }
 
+void DynamicFilter::start_corners_ahead() {
+  if (!ahead_pending_) return;
+  const std::shared_ptr<const FrameData> frame = std::move(ahead_pending_);  // leaves it empty
+  if (calib_) detect_corners_ahead(*frame, *calib_, sensor_, o_.motion_cues_for(sensor_), motion_cue_cache_);
+}
+
 void DynamicFilter::frame_tracked(const std::optional<Eigen::Isometry3d>& T_cw) {
   if (!pending_) return;
   pending_->T_cw = T_cw;
@@ -421,6 +429,7 @@ void DynamicFilter::keyframe_made(const std::vector<cv::Point2f>& keypoints, con
 
 void DynamicFilter::reset() {
   pending_.reset();
+  ahead_pending_.reset();
   previous_.reset();
   last_.reset();
   keyframes_.clear();

@@ -468,10 +468,19 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
 
   try {
     auto t0 = Clock::now();
-    const bool ahead = cache && cache->corners.valid() && cache->corners_image.data == prev.grey.data &&
-                       cache->corners_image.size() == size;
+    // The previous image's corners are in the cache's current slot, or in its
+    // next one when this image's own have not been posted yet.
+    const auto slot = [&](const cv::Mat& image, const std::shared_future<AheadCorners>& f) {
+      return f.valid() && image.data == prev.grey.data && image.size() == size;
+    };
+    const std::shared_future<AheadCorners>* found =
+        !cache ? nullptr
+        : slot(cache->corners_image, cache->corners)           ? &cache->corners
+        : slot(cache->next_corners_image, cache->next_corners) ? &cache->next_corners
+                                                                : nullptr;
+    const bool ahead = found != nullptr;
     AheadCorners detected;
-    if (ahead) detected = cache->corners.get();
+    if (ahead) detected = found->get();
     else detected.corners = detect_corners(prev.grey, o, prev.candidates);
     const std::vector<cv::Point2f>& corners = detected.corners;
     if (corners.empty()) return out;

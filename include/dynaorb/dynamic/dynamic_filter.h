@@ -144,6 +144,26 @@ class DynamicFilter {
   // After tracking the frame of the last process(): its pose (empty when lost).
   // It becomes the previous frame of the next process() (also without this call).
   void frame_tracked(const std::optional<Eigen::Isometry3d>& T_cw);
+  // Starts the detection of the last process()'s frame's corners for the
+  // next frame's motion cues (when its stages used the cues) on the motion
+  // cues' worker thread. System calls it once the frame's ORB features are
+  // extracted: started during the filter, the detection (Harris with
+  // sub-pixel refinement: 5-6 ms a frame; for stereo also 3.5-5 ms of LK
+  // into the right image) took the second core from the extraction's other
+  // half (the right image, or half the pyramid levels). Started after it,
+  // it runs beside stereo matching, tracking and, live, the wait for the
+  // next frame. Old and new builds interleaved, asynchronous mapping,
+  // `full` with label images (KITTI 06: `dynaorb segment`'s), track call,
+  // median of the runs' medians, at the camera's rate (--realtime) / as fast
+  // as possible: KITTI 06 30.8 -> 27.5 / 34.4 -> 32.7 ms (5 + 5 runs);
+  // synthetic stereo with movers 23.1 -> 20.9 / 24.2 -> 24.2, without
+  // 19.8 -> 17.9 / 21.1 -> 19.4; monocular with movers 15.6 -> 13.7 /
+  // 15.0 -> 15.2, without 11.1 -> 10.6 (6 + 6) / 12.7 -> 12.8; RGB-D (1 ms
+  // of FAST corners there) 16.4 -> 16.5 / 16.1 -> 16.1 with movers (4 + 4
+  // each but KITTI and the 6 + 6). The corners are the same (synchronous
+  // runs give the same trajectories). Not called: the next process()
+  // starts it, before its own stages.
+  void start_corners_ahead();
   // The frame of the last process() became a keyframe with these keypoints
   // (tracked-image pixels) and depths (metres, <= 0: none).
   void keyframe_made(const std::vector<cv::Point2f>& keypoints, const std::vector<float>& depth);
@@ -165,6 +185,7 @@ class DynamicFilter {
   std::shared_ptr<FrameData> last_;             // of the last process(), tracked or not
   std::vector<KeyFrameData> keyframes_;
   MotionCueCache motion_cue_cache_;  // the last frame's LK pyramid, corners detected ahead
+  std::shared_ptr<const FrameData> ahead_pending_;  // processed, its corners not yet started ahead
   bool cues_last_frame_ = true;      // the last frame computed motion cues (or none yet)
 };
 

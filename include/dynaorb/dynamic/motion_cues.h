@@ -141,9 +141,10 @@ struct MotionCueCache {
   cv::Mat image;  // holds the buffer: no other image can have its address while cached
   std::vector<cv::Mat> pyramid;
   int window = 0, levels = -1;
-  // The corners of the image the next track_points call starts from
-  // (corners_image, held likewise), and those being detected for the call
-  // after it.
+  // Corners detected ahead (detect_corners_ahead): those of the image the
+  // next track_points call starts from (corners_image, held likewise) and
+  // those started after them; when detect_corners_ahead runs after the
+  // frame's track_points, the next call's are the latter.
   cv::Mat corners_image, next_corners_image;
   std::shared_future<AheadCorners> corners, next_corners;
   // Wall time (ms) of the last call's parts: corners (detection and
@@ -181,8 +182,10 @@ std::vector<float> stereo_depths(const std::vector<cv::Mat>& left_pyramid, const
 // set, calib.bf > 0) it also finds the corners' depth in frame.right, which
 // track_points would otherwise compute on the calling thread. Same corners
 // and depths as computing them then (LK tracks each point on its own). Call
-// it once per frame before that frame's track_points: the corners started at
-// the last call move to the slot track_points reads.
+// it once per frame, before or after that frame's track_points: the corners
+// started at the last call move to the current slot, those started now take
+// the next one, and track_points reads the slot that holds its previous
+// image's.
 void detect_corners_ahead(const FrameData& frame, const map::Calibration& calib, Sensor sensor,
                           const MotionCueOptions& o, MotionCueCache& cache);
 
@@ -197,7 +200,9 @@ void detect_corners_ahead(const FrameData& frame, const map::Calibration& calib,
 // cur (either may be empty). Pixels are raw (possibly distorted) image
 // pixels. Degenerate input (empty or mismatched images) gives no points.
 // cache (optional): reuses the previous call's current-image pyramid when
-// prev.grey is that image, and keeps cur.grey's for the next call.
+// prev.grey is that image, and keeps cur.grey's for the next call; takes
+// prev.grey's corners (and depths) from the cache when they were detected
+// ahead.
 std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& cur,
                                        const map::Calibration& calib, Sensor sensor,
                                        const MotionCueOptions& o, MotionCueCache* cache = nullptr);

@@ -333,9 +333,11 @@ def render(results: dict, out: pathlib.Path, plots: dict | None = None, stages_p
              "own time on its worker thread (not in the sum). The motion cues' corners of the next frame "
              "(Harris: goodFeaturesToTrack, cornerSubPix; or FAST, Dynamic.motion_cues.detector, which `full` "
              "uses for RGB-D) and, for stereo, their depth by LK into the right image are "
-             "found beside the stages on the filter's worker thread: *corners_ahead (worker)* and "
-             "*stereo_ahead (worker)*, not in the sum; they take the second core from the rest, which mono and "
-             "RGB-D also use for half of the ORB pyramid levels (in *extract*).",
+             "found on the filter's worker thread once the frame's ORB features are extracted, beside stereo "
+             "matching, tracking and the next frame's start: *corners_ahead (worker)* and "
+             "*stereo_ahead (worker)*, not in the sum; they take the second core from the rest (local mapping, "
+             "the network; the next frame's own use of it), so they wait until the extraction, which uses it for "
+             "the right image (stereo) or half of the ORB pyramid levels (mono, RGB-D), is done.",
              "- fps: frames over the whole loop's wall time (image loading included). Peak MB: the run's process "
              "(VmHWM of its own address space), for ORB-SLAM3 the worker's python process.",
              "- ATE: evo, SE3 alignment (Sim3 for monocular), RMSE of the position error; RPE per frame.",

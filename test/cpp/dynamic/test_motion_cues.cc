@@ -296,6 +296,33 @@ TEST(MotionCues, CacheGivesTheSamePointsAsWithout) {
   }
 }
 
+// The filter starts a frame's corners after that frame's track_points (once
+// its features are extracted): the next call finds them in the cache's next
+// slot, takes them from there and tracks the same points.
+TEST(MotionCues, CornersStartedAfterTheCallAreFoundByTheNext) {
+  for (Sensor sensor : {Sensor::kRGBD, Sensor::kStereo}) {
+    auto calib = make_calibration(sensor);
+    Pair p = render_pair(*calib, sensor);
+    FrameData third = p.prev;
+    third.grey = p.prev.grey.clone();
+    third.id = 2;
+    const MotionCueOptions o;
+    MotionCueCache cache;
+    detect_corners_ahead(p.prev, *calib, sensor, o, cache);
+    const auto a1 = track_points(p.prev, p.cur, *calib, sensor, o, &cache);
+    EXPECT_TRUE(cache.ms.count("corners_ahead"));
+    EXPECT_EQ(cache.ms.count("stereo_ahead"), sensor == Sensor::kStereo ? 1u : 0u);
+    EXPECT_FALSE(cache.ms.count("stereo"));
+    detect_corners_ahead(p.cur, *calib, sensor, o, cache);
+    const auto a2 = track_points(p.cur, third, *calib, sensor, o, &cache);
+    EXPECT_TRUE(cache.ms.count("corners_ahead"));
+    detect_corners_ahead(third, *calib, sensor, o, cache);
+    ASSERT_GT(a1.size(), 300u);
+    EXPECT_TRUE(same_points(a1, track_points(p.prev, p.cur, *calib, sensor, o)));
+    EXPECT_TRUE(same_points(a2, track_points(p.cur, third, *calib, sensor, o)));
+  }
+}
+
 TEST(MotionCues, MonocularGivesTheFundamentalMatrixOnly) {
   auto calib = make_calibration(Sensor::kMono);
   Pair p = render_pair(*calib, Sensor::kMono);
