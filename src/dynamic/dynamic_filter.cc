@@ -324,15 +324,15 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
   Context ctx{sensor_, calib_, current, previous, cv::Mat::zeros(size, CV_8UC1), nullptr, nullptr,
               T_cw_predicted, &keyframes_};
   // This frame is the next one's previous frame: its corners are detected
-  // ahead, on the cache's worker thread, once the stages before the first
-  // one using the cues (the semantic prior) have set its candidates, which
-  // the corner budget reads. Only while the frames need the cues (a stage may
-  // decline them, e.g. DM without candidate regions): else the detection
-  // would take a core from this frame's work for nothing. A frame that needs
-  // them after one that did not detects its previous frame's corners itself
-  // (the same corners). The detection is only prepared here and started by
-  // start_corners_ahead(), once the frame's ORB features are extracted
-  // (dynamic_filter.h says why).
+  // ahead, on the cache's worker thread, from its image and the candidates
+  // the stages before the first one using the cues (the semantic prior) set,
+  // which the corner budget reads. Only while the frames need the cues (a
+  // stage may decline them, e.g. DM without candidate regions): when
+  // neither this frame nor the one before used them, the detection would
+  // take a core for nothing, and the next frame that needs them detects its
+  // previous frame's corners itself (the same corners). The detection is
+  // only prepared here and started by start_corners_ahead(), once the
+  // frame's ORB features are extracted (dynamic_filter.h says why).
   bool ahead_started = false;
   const MotionCueOptions& cues = o_.motion_cues_for(sensor_);
   std::vector<TrackedPoint> tracked;
@@ -341,7 +341,7 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
     const std::string name = stage->name();
     if (!ahead_started && stage->needs_motion_cues()) {
       ahead_started = true;
-      if (calib_ && cues_last_frame_) ahead_pending_ = std::make_shared<const FrameData>(current);
+      if (calib_) ahead_pending_ = std::make_shared<const FrameData>(current);
     }
     if (!res.motion_cues && stage->needs_motion_cues() && stage->needs_motion_cues_for(ctx)) {
       const auto t0 = Clock::now();
@@ -390,6 +390,7 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
     }
     res.stage_ms[name] = ms_since(t0);
   }
+  if (!res.motion_cues && !cues_last_frame_) ahead_pending_.reset();
   cues_last_frame_ = res.motion_cues;
   res.mask = ctx.dynamic;
   res.fraction = cv::countNonZero(res.mask) / static_cast<double>(res.mask.total());

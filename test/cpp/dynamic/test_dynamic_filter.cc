@@ -344,6 +344,35 @@ TEST(DynamicFilter, MotionCuesOnlyForAFrameThatNeedsThem) {
   for (const char* k : {"corners", "pyramids", "flow", "ego"}) EXPECT_TRUE(r2.motion_cue_ms.count(k)) << k;
 }
 
+// The next frame's corners are detected ahead, on the worker, when the frame
+// or the one before it used the motion cues: a frame that uses them finds
+// its previous frame's corners there unless the two frames before it used
+// none. Started by start_corners_ahead() (System: after the extraction) or,
+// when the caller does not, by the next process().
+TEST(DynamicFilter, CornersAheadFollowTheFramesThatUseTheCues) {
+  const DynamicFilterOptions o = DynamicFilterOptions::parse(
+      "Dynamic.stages: [semantic, dm]\nDynamic.semantic: {classes: voc}\n", "dm.yaml");
+  DynamicFilter filter(o, Sensor::kRGBD, calibration(Sensor::kRGBD));
+  const bool person[] = {true, true, false, true, false, false, true, true, true};
+  std::vector<FrameData> frames;
+  for (int k = 0; k < 9; ++k) {
+    frames.push_back(frame(k, 2 * k));
+    frames.back().labels = cv::Mat(240, 320, CV_8UC1, cv::Scalar(0));
+    if (person[k]) frames.back().labels(cv::Rect(100, 80, 60, 80)).setTo(15);
+  }
+  std::vector<bool> ahead;
+  for (int k = 0; k < 9; ++k) {
+    const FilterResult r = filter.process(frames[k], std::nullopt);
+    EXPECT_EQ(r.motion_cues, person[k]) << k;
+    if (k > 0 && person[k]) EXPECT_GT(r.tracked_points, 100) << k;
+    ahead.push_back(r.motion_cue_ms.count("corners_ahead") > 0);
+    filter.frame_tracked(Eigen::Isometry3d::Identity());
+    if (k != 7) filter.start_corners_ahead();  // after 7: left to the next process()
+  }
+  // 0 has no previous frame; 6 follows two frames without the cues.
+  EXPECT_EQ(ahead, (std::vector<bool>{false, true, false, true, false, false, false, true, true}));
+}
+
 TEST(DynamicFilter, AllDynamicFrameIsKeptAndFlagged) {
   const DynamicFilterOptions o =
       DynamicFilterOptions::parse("Dynamic.stages: [semantic, dm]\nDynamic.semantic: {policy: drop}\n", "all.yaml");
