@@ -145,8 +145,8 @@ class DynamicFilter {
   // It becomes the previous frame of the next process() (also without this call).
   void frame_tracked(const std::optional<Eigen::Isometry3d>& T_cw);
   // Starts the detection of the last process()'s frame's corners for the
-  // next frame's motion cues (when its stages used the cues) on the motion
-  // cues' worker thread. System calls it once the frame's ORB features are
+  // next frame's motion cues on the motion cues' worker thread, when that
+  // process() prepared it (see the end of this comment). System calls it once the frame's ORB features are
   // extracted: started during the filter, the detection (Harris with
   // sub-pixel refinement: 5-6 ms a frame; for stereo also 3.5-5 ms of LK
   // into the right image) took the second core from the extraction's other
