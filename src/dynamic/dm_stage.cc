@@ -52,6 +52,11 @@ bool DmStage::needs_motion_cues_for(const Context& ctx) const {
   return !cand.empty() && cand.type() == CV_8UC1 && cv::countNonZero(cand) > 0;
 }
 
+std::optional<RegionsRequest> DmStage::regions_wanted(const Context& ctx) const {
+  if (!needs_motion_cues_for(ctx)) return std::nullopt;
+  return RegionsRequest{ctx.current.candidates, ctx.current.labels, options_.split_by_label};
+}
+
 void DmStage::reset() {
   memory_frame_ = -1;
   memory_age_.release();

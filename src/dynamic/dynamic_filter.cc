@@ -8,7 +8,9 @@
 #include <fstream>
 #include <iterator>
 #include <mutex>
+#include <optional>
 
+#include "dynaorb/core/helper_thread.h"
 #include "dynaorb/core/stopwatch.h"
 #include "dynaorb/dynamic/semantic_stage.h"
 #include "dynaorb/io/errors.h"
@@ -337,7 +339,8 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
   const MotionCueOptions& cues = o_.motion_cues_for(sensor_);
   std::vector<TrackedPoint> tracked;
   EgoMotion ego;
-  for (const auto& stage : stages_) {
+  for (size_t si = 0; si < stages_.size(); ++si) {
+    const std::unique_ptr<Stage>& stage = stages_[si];
     const std::string name = stage->name();
     if (!ahead_started && stage->needs_motion_cues()) {
       ahead_started = true;
@@ -346,6 +349,21 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
     if (!res.motion_cues && stage->needs_motion_cues() && stage->needs_motion_cues_for(ctx)) {
       const auto t0 = Clock::now();
       if (previous && calib_) {
+        // The candidate regions the stages from this one on will cut, cut
+        // meanwhile on the worker (after the corners it may still be
+        // detecting, which the cues wait for anyway).
+        std::vector<RegionsRequest> wanted;
+        for (size_t sj = si; sj < stages_.size(); ++sj)
+          if (stages_[sj]->needs_motion_cues())
+            if (auto r = stages_[sj]->regions_wanted(ctx)) wanted.push_back(std::move(*r));
+        double regions_ms = -1;
+        std::optional<HelperThread::Job> cut;
+        if (!wanted.empty())
+          cut.emplace(motion_cue_cache_.ahead->submit([&ctx, &regions_ms, wanted = std::move(wanted)] {
+            const auto t = Clock::now();
+            for (const RegionsRequest& r : wanted) ctx.regions.get(r);
+            regions_ms = ms_since(t);
+          }));
         try {
           tracked = track_points(*previous, current, *calib_, sensor_, cues, &motion_cue_cache_);
           res.motion_cue_ms = motion_cue_cache_.ms;
@@ -360,6 +378,17 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
           ego = EgoMotion();
           res.failed.push_back("motion_cues");
           res.failure_messages.push_back(std::string("motion_cues: ") + e.what());
+        }
+        if (cut) {
+          // The stages may use ctx.regions once the job is done. What it
+          // threw, the stage meets again when it cuts the regions itself.
+          const auto t_wait = Clock::now();
+          try {
+            cut->get();
+          } catch (const std::exception&) {
+          }
+          res.motion_cue_ms["regions_wait"] = ms_since(t_wait);
+          if (regions_ms >= 0) res.motion_cue_ms["regions_ahead"] = regions_ms;
         }
       }
       ctx.tracked = &tracked;

@@ -99,9 +99,10 @@ def test_stereo_full_preset(tmp_path, synth_stereo):
     assert "dynamic.stdyn" in dyn["summary"]["stage_ms_median"]
     # The corners (and their stereo depth) found ahead on the filter's worker
     # thread: from the third frame on (the second tracks the first's corners,
-    # detected then); apart from the stages' times.
+    # detected then); DM-SLAM's regions cut there beside the motion cues;
+    # apart from the stages' times.
     worker = dyn["summary"]["worker_ms_median"]
-    assert set(worker) == {"corners_ahead", "stereo_ahead"} and min(worker.values()) > 0, worker
+    assert set(worker) == {"corners_ahead", "stereo_ahead", "regions_ahead"} and min(worker.values()) > 0, worker
     assert not any(k.endswith("_ahead") for k in dyn["summary"]["stage_ms_median"])
 
 

@@ -52,13 +52,22 @@ struct CandidateBlobs {
 CandidateBlobs candidate_blobs(const cv::Mat& candidates);
 CandidateRegions candidate_regions(const CandidateBlobs& blobs, const cv::Mat& labels, bool split_by_label);
 
+// The arguments of one candidate_regions call (Stage::regions_wanted).
+struct RegionsRequest {
+  cv::Mat candidates, labels;
+  bool split_by_label = false;
+};
+
 // candidate_regions for one frame, cut once for all the stages that ask with
 // the same inputs (the same pixels, not only the same buffers): DM-SLAM's
 // and STDyn-SLAM's stages decide on the same objects. The result is shared
 // (do not write into its ids) and lives as long as the memo.
 class RegionsMemo {
  public:
+  // Not thread-safe: DynamicFilter calls it from its worker thread only
+  // while no stage runs (it waits for that job first).
   const CandidateRegions& get(const cv::Mat& candidates, const cv::Mat& labels, bool split_by_label);
+  const CandidateRegions& get(const RegionsRequest& r) { return get(r.candidates, r.labels, r.split_by_label); }
 
  private:
   struct Result {

@@ -109,6 +109,9 @@ class DmStage : public Stage {
   bool needs_motion_cues() const override { return true; }
   // Not without candidate regions (process skips before reading them).
   bool needs_motion_cues_for(const Context& ctx) const override;
+  // The regions process() cuts: the candidates split by the labels
+  // (split_by_label).
+  std::optional<RegionsRequest> regions_wanted(const Context& ctx) const override;
   void process(Context& ctx, StageReport& report) override;
   void reset() override;
 

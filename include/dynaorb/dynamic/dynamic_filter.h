@@ -117,7 +117,8 @@ struct FilterResult {
   bool motion_cues = false;    // computed for this frame
   // Wall time of the motion cues' parts (MotionCueCache::ms: corners,
   // pyramids, flow, stereo; and ego, the ego-motion), within
-  // stage_ms["motion_cues"].
+  // stage_ms["motion_cues"]; also regions_wait (within) and regions_ahead
+  // (the worker's, beside them): see process().
   std::map<std::string, double> motion_cue_ms;
   int tracked_points = 0;      // of the motion cues
   bool ego_valid = false;
@@ -140,6 +141,22 @@ class DynamicFilter {
   // frame's images (cv::Mat buffers shared, not copied): the caller must not
   // write into them afterwards. T_cw_predicted: SLAM's constant-velocity
   // prediction for this frame, if any.
+  //
+  // While the motion cues are computed (LK, which OpenCV spreads over the
+  // cores, then the ego-motion), the worker thread of the corners ahead cuts
+  // the candidate regions the stages still to run will ask for
+  // (Stage::regions_wanted: DM-SLAM's split by class, 1.2-1.5 ms at 640x480
+  // with movers), and the stages find them in ctx.regions
+  // (FilterResult::motion_cue_ms: regions_ahead, the job's own time, and
+  // regions_wait, the wait for it after the cues). Old and new builds
+  // interleaved, `full` with label images, asynchronous mapping, track call,
+  // median of the runs' medians, paced (--realtime) / as fast as possible:
+  // synthetic RGB-D with movers 15.1 -> 13.5 / 14.8 -> 13.0 ms (6 + 6 runs),
+  // monocular with movers 13.2 -> 12.5 / 14.5 -> 15.0 (6 + 6; its keyframe
+  // timing varies unpaced; pooled mean 15.7 both), stereo with movers
+  // 21.7 -> 20.9 / 23.4 -> 24.3 (5 + 5; pooled mean 24.8 -> 24.5), KITTI 06
+  // paced 26.8 -> 24.4 (5 + 5). The same regions (synchronous runs: the same
+  // trajectories).
   FilterResult process(FrameData& current, const std::optional<Eigen::Isometry3d>& T_cw_predicted);
   // After tracking the frame of the last process(): its pose (empty when lost).
   // It becomes the previous frame of the next process() (also without this call).

@@ -127,6 +127,13 @@ class Stage {
   // computes the cues before the first stage that says so; a stage that
   // says no must not read ctx.tracked / ctx.ego. Default: needs_motion_cues().
   virtual bool needs_motion_cues_for(const Context& ctx) const { return needs_motion_cues(); }
+  // The candidate regions (ctx.regions.get's arguments) it will ask for on
+  // this frame, when it can tell before the motion cues are computed (the
+  // earlier stages have run): the filter cuts them on its worker thread while
+  // it computes the cues, and the stage finds them in ctx.regions. Asked of
+  // the stages that use the cues, from the first that needs them on this
+  // frame on, right before they are computed. Default: none.
+  virtual std::optional<RegionsRequest> regions_wanted(const Context& ctx) const { return std::nullopt; }
   // Runs on one frame: ORs dynamic regions into ctx.dynamic (may read and
   // write ctx.current.candidates), fills `report`. Must not throw on degenerate input
   // (no previous frame, no labels, too few points): it then marks nothing and

@@ -337,7 +337,9 @@ def render(results: dict, out: pathlib.Path, plots: dict | None = None, stages_p
              "matching, tracking and the next frame's start: *corners_ahead (worker)* and "
              "*stereo_ahead (worker)*, not in the sum; they take the second core from the rest (local mapping, "
              "the network; the next frame's own use of it), so they wait until the extraction, which uses it for "
-             "the right image (stereo) or half of the ORB pyramid levels (mono, RGB-D), is done.",
+             "the right image (stereo) or half of the ORB pyramid levels (mono, RGB-D), is done. "
+             "While the motion cues are computed, the same worker cuts the candidate regions DM-SLAM's stage "
+             "decides on: *regions_ahead (worker)*, not in the sum.",
              "- fps: frames over the whole loop's wall time (image loading included). Peak MB: the run's process "
              "(VmHWM of its own address space), for ORB-SLAM3 the worker's python process.",
              "- ATE: evo, SE3 alignment (Sim3 for monocular), RMSE of the position error; RPE per frame.",

@@ -248,7 +248,8 @@ def _median(values):
 # Per-frame values of work done for the filter on a worker thread, beside the
 # stages (not inside their times): the motion cues' corners of the next
 # frame, detected ahead with their sub-pixel refinement, and their stereo
-# depth. "motion_cues.<part>_ahead_ms" -> "<part>_ahead".
+# depth; the candidate regions cut beside the motion cues.
+# "motion_cues.<part>_ahead_ms" -> "<part>_ahead".
 _WORKER_PREFIX, _WORKER_SUFFIX = "motion_cues.", "_ahead_ms"
 
 

@@ -4,6 +4,7 @@
 #include <opencv2/imgproc.hpp>
 #include <random>
 
+#include "dynaorb/dynamic/dm_stage.h"
 #include "dynaorb/dynamic/dynamic_filter.h"
 #include "dynaorb/features/orb_extractor.h"
 #include "dynaorb/io/errors.h"
@@ -371,6 +372,60 @@ TEST(DynamicFilter, CornersAheadFollowTheFramesThatUseTheCues) {
   }
   // 0 has no previous frame; 6 follows two frames without the cues.
   EXPECT_EQ(ahead, (std::vector<bool>{false, true, false, true, false, false, false, true, true}));
+}
+
+// DM-SLAM's stage cutting its regions itself, as before the filter cut them
+// on its worker beside the motion cues.
+class DmCuttingItsOwnRegions : public DmStage {
+ public:
+  using DmStage::DmStage;
+  std::optional<RegionsRequest> regions_wanted(const Context&) const override { return std::nullopt; }
+};
+
+TEST(DynamicFilter, RegionsCutBesideTheCuesAreTheStagesOwn) {
+  register_stage("dm_own_regions", [](const cv::FileNode& node) -> std::unique_ptr<Stage> {
+    DmOptions o;
+    o.read(node);
+    return std::make_unique<DmCuttingItsOwnRegions>(o);
+  });
+  const std::string preset = "Dynamic.semantic: {classes: voc, margin: 4}\n";
+  DynamicFilter ahead(DynamicFilterOptions::parse("Dynamic.stages: [semantic, dm]\n" + preset, "a.yaml"),
+                      Sensor::kRGBD, calibration(Sensor::kRGBD));
+  DynamicFilter own(DynamicFilterOptions::parse("Dynamic.stages: [semantic, dm_own_regions]\n" + preset, "o.yaml"),
+                    Sensor::kRGBD, calibration(Sensor::kRGBD));
+  // The background moves 2 px a frame; a person (15) and the car (7) they
+  // stand against move 8 px: one blob of two classes, split into two regions.
+  cv::Mat mover(100, 120, CV_8UC1);
+  cv::RNG rng(11);
+  rng.fill(mover, cv::RNG::UNIFORM, 0, 255);
+  cv::GaussianBlur(mover, mover, cv::Size(5, 5), 1.5);
+  int dynamic_frames = 0;
+  for (int k = 0; k < 6; ++k) {
+    FrameData a = frame(k, 2 * k);
+    const cv::Rect box(60 + 8 * k, 70, 120, 100);
+    mover.copyTo(a.grey(box));
+    a.labels = cv::Mat(240, 320, CV_8UC1, cv::Scalar(0));
+    a.labels(cv::Rect(box.x, box.y, 50, box.height)).setTo(15);
+    a.labels(cv::Rect(box.x + 50, box.y, 70, box.height)).setTo(7);
+    FrameData o = a;
+    const FilterResult ra = ahead.process(a, std::nullopt);
+    const FilterResult ro = own.process(o, std::nullopt);
+    ASSERT_TRUE(ra.failed.empty() && ro.failed.empty()) << k;
+    EXPECT_EQ(ra.motion_cue_ms.count("regions_ahead"), k > 0 ? 1u : 0u) << k;
+    EXPECT_EQ(ro.motion_cue_ms.count("regions_ahead"), 0u) << k;
+    EXPECT_EQ(cv::countNonZero(ra.mask != ro.mask), 0) << k;
+    std::map<std::string, double> va = ra.reports.at("dm").values, vo = ro.reports.at("dm").values;
+    va.erase("regions_ms");
+    vo.erase("regions_ms");
+    EXPECT_EQ(va, vo) << k;
+    if (k > 0) EXPECT_EQ(va["regions"], 2) << k;
+    if (ra.reports.at("dm").regions > 0) ++dynamic_frames;
+    for (DynamicFilter* f : {&ahead, &own}) {
+      f->frame_tracked(Eigen::Isometry3d::Identity());
+      f->start_corners_ahead();
+    }
+  }
+  EXPECT_GE(dynamic_frames, 4);  // the movers were judged, not skipped
 }
 
 TEST(DynamicFilter, AllDynamicFrameIsKeptAndFlagged) {
