@@ -304,6 +304,33 @@ void DynamicFilter::settle_pending() {
   pending_.reset();
 }
 
+namespace {
+
+// Cuts on `worker` the candidate regions that stages[from..] will ask for
+// (Stage::regions_wanted) into ctx.regions; `ms` gets the job's own time.
+// None when no stage names any. The caller waits for the job before a
+// stage runs.
+std::optional<HelperThread::Job> cut_regions_ahead(const std::vector<std::unique_ptr<Stage>>& stages, size_t from,
+                                                   Context& ctx, HelperThread& worker, double& ms) {
+  std::vector<RegionsRequest> wanted;
+  for (size_t i = from; i < stages.size(); ++i) {
+    if (!stages[i]->needs_motion_cues()) continue;
+    try {
+      if (auto r = stages[i]->regions_wanted(ctx)) wanted.push_back(std::move(*r));
+    } catch (const std::exception&) {
+      // A stage bug: nothing is cut ahead for it; its process() meets it.
+    }
+  }
+  if (wanted.empty()) return std::nullopt;
+  return worker.submit([&ctx, &ms, wanted = std::move(wanted)] {
+    const auto t = Clock::now();
+    for (const RegionsRequest& r : wanted) ctx.regions.get(r);
+    ms = ms_since(t);
+  });
+}
+
+}  // namespace
+
 FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eigen::Isometry3d>& T_cw_predicted) {
   const auto t_start = Clock::now();
   settle_pending();
@@ -349,21 +376,10 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
     if (!res.motion_cues && stage->needs_motion_cues() && stage->needs_motion_cues_for(ctx)) {
       const auto t0 = Clock::now();
       if (previous && calib_) {
-        // The candidate regions the stages from this one on will cut, cut
-        // meanwhile on the worker (after the corners it may still be
-        // detecting, which the cues wait for anyway).
-        std::vector<RegionsRequest> wanted;
-        for (size_t sj = si; sj < stages_.size(); ++sj)
-          if (stages_[sj]->needs_motion_cues())
-            if (auto r = stages_[sj]->regions_wanted(ctx)) wanted.push_back(std::move(*r));
+        // Meanwhile on the worker, after the corners it may still be
+        // detecting (which the cues wait for anyway).
         double regions_ms = -1;
-        std::optional<HelperThread::Job> cut;
-        if (!wanted.empty())
-          cut.emplace(motion_cue_cache_.ahead->submit([&ctx, &regions_ms, wanted = std::move(wanted)] {
-            const auto t = Clock::now();
-            for (const RegionsRequest& r : wanted) ctx.regions.get(r);
-            regions_ms = ms_since(t);
-          }));
+        std::optional<HelperThread::Job> cut = cut_regions_ahead(stages_, si, ctx, *motion_cue_cache_.ahead, regions_ms);
         try {
           tracked = track_points(*previous, current, *calib_, sensor_, cues, &motion_cue_cache_);
           res.motion_cue_ms = motion_cue_cache_.ms;

@@ -428,6 +428,33 @@ TEST(DynamicFilter, RegionsCutBesideTheCuesAreTheStagesOwn) {
   EXPECT_GE(dynamic_frames, 4);  // the movers were judged, not skipped
 }
 
+// A stage whose regions_wanted has a bug: the filter cuts nothing ahead for
+// it, and the frame goes on.
+class RegionsWantedThrows : public DmStage {
+ public:
+  std::optional<RegionsRequest> regions_wanted(const Context&) const override {
+    throw std::runtime_error("regions_wanted bug");
+  }
+};
+
+TEST(DynamicFilter, AStageFailingToNameItsRegionsStillRuns) {
+  register_stage("dm_regions_wanted_throws",
+                 [](const cv::FileNode&) -> std::unique_ptr<Stage> { return std::make_unique<RegionsWantedThrows>(); });
+  DynamicFilter filter(DynamicFilterOptions::parse("Dynamic.stages: [semantic, dm_regions_wanted_throws]\n", "t.yaml"),
+                       Sensor::kRGBD, calibration(Sensor::kRGBD));
+  for (int k = 0; k < 3; ++k) {
+    FrameData f = frame(k, 2 * k);
+    f.labels = cv::Mat(240, 320, CV_8UC1, cv::Scalar(0));
+    f.labels(cv::Rect(100, 80, 60, 80)).setTo(15);
+    FilterResult r;
+    ASSERT_NO_THROW(r = filter.process(f, std::nullopt)) << k;
+    EXPECT_TRUE(r.failed.empty()) << k;
+    EXPECT_EQ(r.motion_cue_ms.count("regions_ahead"), 0u) << k;
+    if (k > 0) EXPECT_GT(r.reports.at("dm").values.at("regions"), 0) << k;  // cut by the stage itself
+    filter.frame_tracked(Eigen::Isometry3d::Identity());
+  }
+}
+
 TEST(DynamicFilter, AllDynamicFrameIsKeptAndFlagged) {
   const DynamicFilterOptions o =
       DynamicFilterOptions::parse("Dynamic.stages: [semantic, dm]\nDynamic.semantic: {policy: drop}\n", "all.yaml");
