@@ -54,7 +54,7 @@ bool DmStage::needs_motion_cues_for(const Context& ctx) const {
 
 std::optional<RegionsRequest> DmStage::regions_wanted(const Context& ctx) const {
   if (!needs_motion_cues_for(ctx)) return std::nullopt;
-  return RegionsRequest{ctx.current.candidates, ctx.current.labels, options_.split_by_label};
+  return regions_request(ctx);
 }
 
 void DmStage::reset() {
@@ -215,7 +215,7 @@ void DmStage::process(Context& ctx, StageReport& report) {
 
   // Per-region decision.
   const auto t_regions = Clock::now();
-  const CandidateRegions& regions = ctx.regions.get(cand, ctx.current.labels, o.split_by_label);
+  const CandidateRegions& regions = ctx.regions.get(regions_request(ctx));
   val["regions_ms"] = ms_since(t_regions);
   // The vote is the segmented object's (DM-SLAM: the points that "fall in the
   // potentially moving area"): points in the margin the candidates add around

@@ -109,8 +109,7 @@ class DmStage : public Stage {
   bool needs_motion_cues() const override { return true; }
   // Not without candidate regions (process skips before reading them).
   bool needs_motion_cues_for(const Context& ctx) const override;
-  // The regions process() cuts: the candidates split by the labels
-  // (split_by_label).
+  // regions_request(ctx), on a frame it will judge.
   std::optional<RegionsRequest> regions_wanted(const Context& ctx) const override;
   void process(Context& ctx, StageReport& report) override;
   void reset() override;
@@ -118,6 +117,11 @@ class DmStage : public Stage {
   const DmOptions& options() const { return options_; }
 
  private:
+  // The regions process() cuts: the candidates split by the labels
+  // (split_by_label).
+  RegionsRequest regions_request(const Context& ctx) const {
+    return {ctx.current.candidates, ctx.current.labels, options_.split_by_label};
+  }
   DmOptions options_;
   // This stage's decisions on the last frame it processed, for the
   // "previous" policy and keep_moving_frames: pixels of regions it declared
