@@ -371,7 +371,7 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
     const std::string name = stage->name();
     if (!ahead_started && stage->needs_motion_cues()) {
       ahead_started = true;
-      if (calib_) ahead_pending_ = std::make_shared<const FrameData>(current);
+      ahead_pending_ = std::make_shared<const FrameData>(current);
     }
     if (!res.motion_cues && stage->needs_motion_cues() && stage->needs_motion_cues_for(ctx)) {
       const auto t0 = Clock::now();
