@@ -351,7 +351,7 @@ FilterResult DynamicFilter::process(FrameData& current, const std::optional<Eige
 
   current.motion_checked = previous != nullptr;
   Context ctx{sensor_, calib_, current, previous, cv::Mat::zeros(size, CV_8UC1), nullptr, nullptr,
-              T_cw_predicted, &keyframes_};
+              T_cw_predicted, &keyframes_, {}};
   // This frame is the next one's previous frame: its corners are detected
   // ahead, on the cache's worker thread, from its image and the candidates
   // the stages before the first one using the cues (the semantic prior) set,

@@ -504,7 +504,7 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
     }
 
     t0 = Clock::now();
-        const auto inside = [&](size_t, const cv::Point2f& p) { return away_from_edge(p, size, border); };
+    const auto inside = [&](size_t, const cv::Point2f& p) { return away_from_edge(p, size, border); };
     const Flow flow = track_forward_backward(prev_pyramid, cur_pyramid, corners, o, o.forward_backward_max, inside);
     std::vector<cv::Point2f> kept_prev, kept_cur;
     std::vector<size_t> kept_corner;

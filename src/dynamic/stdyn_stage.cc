@@ -282,7 +282,8 @@ void StdynStage::process(Context& ctx, StageReport& report) {
   const auto t_f = Clock::now();
   try {
     std::vector<unsigned char> mask;
-    const cv::Mat Fm = cv::findFundamentalMat(f_prev, f_cur, o_.f_method == "usac" ? cv::USAC_ACCURATE : cv::FM_RANSAC,
+    const int method = o_.f_method == "usac" ? static_cast<int>(cv::USAC_ACCURATE) : static_cast<int>(cv::FM_RANSAC);
+    const cv::Mat Fm = cv::findFundamentalMat(f_prev, f_cur, method,
                                               o_.f_ransac_threshold_px,
                                               std::clamp(o_.f_ransac_confidence, 0.0, 1.0),
                                               std::max(o_.f_ransac_iterations, 1), mask);

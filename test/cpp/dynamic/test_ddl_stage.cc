@@ -123,7 +123,7 @@ Sequence crossing_box(cv::Mat dist = cv::Mat()) {
 // Every member named: Context is an aggregate with a reference member.
 Context make_context(Sequence& s) {
   return Context{Sensor::kRGBD, s.calib, *s.current.frame, nullptr, cv::Mat(kH, kW, CV_8UC1, cv::Scalar(0)),
-                 nullptr,       nullptr, s.T_cw_current,    &s.keyframes};
+                 nullptr,       nullptr, s.T_cw_current,    &s.keyframes, {}};
 }
 
 TEST(DdlStage, CrossingBoxIsFoundStaticRoomIsNot) {

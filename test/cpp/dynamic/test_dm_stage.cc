@@ -45,7 +45,7 @@ cv::Mat candidates_of(const cv::Mat& labels) {
 
 Context make_context(Sensor sensor, std::shared_ptr<const map::Calibration> calib, FrameData& cur,
                      std::shared_ptr<const FrameData> prev) {
-  return Context{sensor, std::move(calib), cur, std::move(prev), cv::Mat(), nullptr, nullptr, std::nullopt, nullptr};
+  return Context{sensor, std::move(calib), cur, std::move(prev), cv::Mat(), nullptr, nullptr, std::nullopt, nullptr, {}};
 }
 
 struct Case {
@@ -448,7 +448,7 @@ TEST(CandidateRegions, BlobsAreConnectedComponentsWithStats) {
     for (int r = all_ones ? 1 : 0; r < n; ++r)
       for (int k = 0; k < cv::CC_STAT_MAX; ++k)
         ASSERT_EQ(b.stats.at<int>(r, k), stats.at<int>(r, k)) << "mask " << i << " label " << r << " stat " << k;
-    if (all_ones) EXPECT_EQ(b.stats.at<int>(0, cv::CC_STAT_AREA), 0);
+    if (all_ones) { EXPECT_EQ(b.stats.at<int>(0, cv::CC_STAT_AREA), 0); }
   }
   EXPECT_EQ(candidate_blobs(cv::Mat()).count, 0);
   EXPECT_EQ(candidate_blobs(cv::Mat(10, 10, CV_32FC1, cv::Scalar(1))).count, 0);

@@ -365,7 +365,7 @@ TEST(DynamicFilter, CornersAheadFollowTheFramesThatUseTheCues) {
   for (int k = 0; k < 9; ++k) {
     const FilterResult r = filter.process(frames[k], std::nullopt);
     EXPECT_EQ(r.motion_cues, person[k]) << k;
-    if (k > 0 && person[k]) EXPECT_GT(r.tracked_points, 100) << k;
+    if (k > 0 && person[k]) { EXPECT_GT(r.tracked_points, 100) << k; }
     ahead.push_back(r.motion_cue_ms.count("corners_ahead") > 0);
     filter.frame_tracked(Eigen::Isometry3d::Identity());
     if (k != 7) filter.start_corners_ahead();  // after 7: left to the next process()
@@ -418,7 +418,7 @@ TEST(DynamicFilter, RegionsCutBesideTheCuesAreTheStagesOwn) {
     va.erase("regions_ms");
     vo.erase("regions_ms");
     EXPECT_EQ(va, vo) << k;
-    if (k > 0) EXPECT_EQ(va["regions"], 2) << k;
+    if (k > 0) { EXPECT_EQ(va["regions"], 2) << k; }
     if (ra.reports.at("dm").regions > 0) ++dynamic_frames;
     for (DynamicFilter* f : {&ahead, &own}) {
       f->frame_tracked(Eigen::Isometry3d::Identity());
@@ -450,7 +450,7 @@ TEST(DynamicFilter, AStageFailingToNameItsRegionsStillRuns) {
     ASSERT_NO_THROW(r = filter.process(f, std::nullopt)) << k;
     EXPECT_TRUE(r.failed.empty()) << k;
     EXPECT_EQ(r.motion_cue_ms.count("regions_ahead"), 0u) << k;
-    if (k > 0) EXPECT_GT(r.reports.at("dm").values.at("regions"), 0) << k;  // cut by the stage itself
+    if (k > 0) { EXPECT_GT(r.reports.at("dm").values.at("regions"), 0) << k; }  // cut by the stage itself
     filter.frame_tracked(Eigen::Isometry3d::Identity());
   }
 }

@@ -24,7 +24,7 @@ using dynaorb::test::li::StereoPair;
 Context stereo_context(std::shared_ptr<const map::Calibration> calib, FrameData& cur,
                        std::shared_ptr<const FrameData> prev, cv::Mat dynamic = cv::Mat()) {
   return Context{Sensor::kStereo, std::move(calib), cur, std::move(prev), std::move(dynamic),
-                 nullptr, nullptr, std::nullopt, nullptr};
+                 nullptr, nullptr, std::nullopt, nullptr, {}};
 }
 
 class LiStageTest : public ::testing::Test {

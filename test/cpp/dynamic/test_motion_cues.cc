@@ -284,7 +284,7 @@ TEST(MotionCues, CacheGivesTheSamePointsAsWithout) {
     // Stereo: the depths came with the corners (and are the same, below).
     EXPECT_FALSE(cache.ms.count("stereo"));
     EXPECT_EQ(cache.ms.count("stereo_ahead"), sensor == Sensor::kStereo ? 1u : 0u);
-    if (sensor == Sensor::kStereo) EXPECT_GT(cache.ms.at("stereo_ahead"), 0.0);
+    if (sensor == Sensor::kStereo) { EXPECT_GT(cache.ms.at("stereo_ahead"), 0.0); }
     detect_corners_ahead(third, *calib, sensor, o, cache);
     const auto a2 = track_points(p.cur, third, *calib, sensor, o, &cache);
     const auto a3 = track_points(q.prev, q.cur, *calib, sensor, o, &cache);  // not the cached images

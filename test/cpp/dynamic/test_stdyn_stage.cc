@@ -160,7 +160,7 @@ Pair make_frames(const Scene& s) {
 Context context(Sensor sensor, std::shared_ptr<const map::Calibration> calib, FrameData& cur,
                 std::shared_ptr<const FrameData> prev) {
   return Context{sensor,  std::move(calib), cur,          std::move(prev), cv::Mat(),
-                 nullptr, nullptr,          std::nullopt, nullptr};
+                 nullptr, nullptr,          std::nullopt, nullptr, {}};
 }
 
 struct Outcome {
