@@ -65,8 +65,22 @@ void SemanticOptions::read(const cv::FileNode& node) {
   else
     throw InputError("option '" + detail::key_name(node, "policy") + "': unknown policy '" + p +
                      "' (drop or static_until_proven)");
-  detail::read_option(node, "drop_unchecked", drop_unchecked);
+  if (detail::has_key(node, "drop_unchecked")) {  // stereo and RGB-D; their own keys below override it
+    bool both = false;
+    detail::read_option(node, "drop_unchecked", both);
+    drop_unchecked_stereo = drop_unchecked_rgbd = both;
+  }
+  detail::read_option(node, "drop_unchecked_stereo", drop_unchecked_stereo);
+  detail::read_option(node, "drop_unchecked_rgbd", drop_unchecked_rgbd);
   detail::read_option(node, "drop_unchecked_mono", drop_unchecked_mono);
+}
+
+bool SemanticOptions::drop_unchecked_for(Sensor sensor) const {
+  switch (sensor) {
+    case Sensor::kMono: return drop_unchecked_mono;
+    case Sensor::kRGBD: return drop_unchecked_rgbd;
+    default: return drop_unchecked_stereo;
+  }
 }
 
 SemanticStage::SemanticStage(const SemanticOptions& options) : o_(options) { build_lookup(); }
@@ -200,9 +214,8 @@ void SemanticStage::process(Context& ctx, StageReport& report) {
   // The blobs are cut once for this and the later stages' regions.
   const int regions = n > 0 ? ctx.regions.get(cur.candidates, cv::Mat(), false).count : 0;
   report.values["candidate_regions"] = regions;
-  const bool drop_unchecked = ctx.sensor == Sensor::kMono ? o_.drop_unchecked_mono : o_.drop_unchecked;
-  const bool unchecked = o_.policy == SemanticOptions::Policy::kStaticUntilProven && drop_unchecked &&
-                         !ctx.previous;
+  const bool unchecked = o_.policy == SemanticOptions::Policy::kStaticUntilProven &&
+                         o_.drop_unchecked_for(ctx.sensor) && !ctx.previous;
   if (unchecked && n > 0) report.values["unchecked_dropped"] = 1;
   if ((o_.policy == SemanticOptions::Policy::kDrop || unchecked) && n > 0) {
     if (ctx.dynamic.empty()) ctx.dynamic = cv::Mat::zeros(cur.grey.size(), CV_8UC1);

@@ -30,7 +30,7 @@ SemanticOptions options(const std::string& yaml) {
 
 StageReport run(SemanticStage& stage, FrameData& f, cv::Mat& dynamic) {
   Context ctx{Sensor::kRGBD, nullptr, f, nullptr, cv::Mat::zeros(f.grey.size(), CV_8UC1), nullptr, nullptr,
-              std::nullopt, nullptr};
+              std::nullopt, nullptr, {}};
   StageReport report;
   stage.process(ctx, report);
   dynamic = ctx.dynamic;
@@ -110,23 +110,31 @@ TEST(SemanticStage, StaticUntilProvenOnlySetsCandidates) {
 
 // With no previous frame nothing can be proven to move: static_until_proven
 // leaves the candidates of such a frame static (DM-SLAM), or drops them with
-// drop_unchecked_mono (mono) / drop_unchecked (RGB-D, stereo).
+// drop_unchecked_<sensor>; drop_unchecked sets stereo's and RGB-D's, which
+// their own keys override.
 TEST(SemanticStage, UncheckedFrameDropsItsCandidatesWhenAsked) {
-  for (const std::string& yaml : {std::string("{margin: 0, policy: static_until_proven}"),
-                                  std::string("{margin: 0, policy: static_until_proven, drop_unchecked_mono: 1}"),
-                                  std::string("{margin: 0, policy: static_until_proven, drop_unchecked: 1}")}) {
-    const bool mono_drops = yaml.find("drop_unchecked_mono") != std::string::npos;
-    const bool others_drop = yaml.find("drop_unchecked:") != std::string::npos;
-    for (Sensor s : {Sensor::kMono, Sensor::kRGBD}) {
+  struct Case {
+    std::string keys;
+    bool mono, stereo, rgbd;  // which sensors drop
+  };
+  for (const Case& c : {Case{"", false, false, false}, Case{", drop_unchecked_mono: 1", true, false, false},
+                        Case{", drop_unchecked: 1", false, true, true},
+                        Case{", drop_unchecked_rgbd: 1", false, false, true},
+                        Case{", drop_unchecked_stereo: 1", false, true, false},
+                        Case{", drop_unchecked: 1, drop_unchecked_stereo: 0", false, false, true},
+                        Case{", drop_unchecked_rgbd: 1, drop_unchecked: 0", false, false, true}}) {
+    const std::string yaml = "{margin: 0, policy: static_until_proven" + c.keys + "}";
+    for (Sensor s : {Sensor::kMono, Sensor::kStereo, Sensor::kRGBD}) {
       SemanticStage stage(options(yaml));
       FrameData f = labelled_frame();
       auto previous = std::make_shared<FrameData>(labelled_frame());
+      const bool drops = s == Sensor::kMono ? c.mono : s == Sensor::kStereo ? c.stereo : c.rgbd;
       for (bool with_previous : {false, true}) {
         Context ctx{s, nullptr, f, with_previous ? previous : nullptr, cv::Mat::zeros(f.grey.size(), CV_8UC1),
-                    nullptr, nullptr, std::nullopt, nullptr};
+                    nullptr, nullptr, std::nullopt, nullptr, {}};
         StageReport r;
         stage.process(ctx, r);
-        const bool dropped = !with_previous && (s == Sensor::kMono ? mono_drops : others_drop);
+        const bool dropped = !with_previous && drops;
         EXPECT_EQ(cv::countNonZero(ctx.dynamic), dropped ? 40 * 60 : 0) << yaml << " " << to_string(s);
         EXPECT_EQ(r.values.count("unchecked_dropped"), dropped ? 1u : 0u);
         EXPECT_EQ(r.regions, dropped ? 1 : 0);
@@ -181,6 +189,8 @@ TEST(SemanticStage, OptionErrorsNameTheKey) {
   EXPECT_NE(message("{margin: wide}").find("Dynamic.semantic.margin"), std::string::npos);
   EXPECT_NE(message("{margin: -1}").find("Dynamic.semantic.margin"), std::string::npos);
   EXPECT_NE(message("{policy: maybe}").find("Dynamic.semantic.policy"), std::string::npos);
+  EXPECT_NE(message("{drop_unchecked: maybe}").find("Dynamic.semantic.drop_unchecked"), std::string::npos);
+  EXPECT_NE(message("{drop_unchecked_rgbd: 0.5}").find("Dynamic.semantic.drop_unchecked_rgbd"), std::string::npos);
   EXPECT_EQ(message("{policy: static_until_proven}"), "no error");
 }
 
