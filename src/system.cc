@@ -373,6 +373,32 @@ struct System::Impl {
     return res.mask;
   }
 
+  // A stereo / RGB-D map starts from one frame. When the filter dropped
+  // that frame's movable-class candidates unchecked (SemanticOptions::
+  // drop_unchecked_<sensor>: no previous frame to prove their motion with)
+  // and what is left cannot start the map (Tracker::can_initialize: a small
+  // image, a view full of movers), the candidates are kept for this frame, as
+  // DM-SLAM leaves an unchecked frame's candidates, rather than losing it:
+  // true, with dynamic_mask narrowed to the other stages' regions outside the
+  // candidates (DynamicFilter::keep_candidates), r's semantic.unchecked_kept
+  // = 1 and counters.unchecked_kept counted. The later frames check them
+  // against this one.
+  bool keep_unchecked_candidates(const std::shared_ptr<const map::Features>& f, double stamp,
+                                 cv::Mat& dynamic_mask, TrackResult& r) {
+    if (sensor == Sensor::kMono || !filter || !f || tracker->initialized() || dynamic_mask.empty()) return false;
+    const auto dropped = r.dynamic_values.find("semantic.unchecked_dropped");
+    if (dropped == r.dynamic_values.end() || dropped->second == 0) return false;
+    if (tracker->can_initialize(map::Frame(next_frame_id, stamp, f))) return false;
+    filter->keep_candidates();
+    const std::shared_ptr<const dynamic::FrameData> last = filter->last_frame();
+    if (!last || last->dynamic.size() != dynamic_mask.size()) return false;
+    dynamic_mask = last->dynamic;
+    r.dynamic_fraction = static_cast<double>(cv::countNonZero(dynamic_mask)) / static_cast<double>(dynamic_mask.total());
+    r.dynamic_values["semantic.unchecked_kept"] = 1;
+    ++counters.unchecked_kept;
+    return true;
+  }
+
   TrackResult finish(TrackResult r, double stamp, Clock::time_point start) {
     r.stage_ms["preprocess"] = ms_since(start);
     if (expected_size.area() == 0) expected_size = grey.size();
@@ -382,9 +408,10 @@ struct System::Impl {
     std::shared_ptr<const map::Features> f;
     features::ExcludedCount count;
     // The filter's mask, with the caller's: what the extraction leaves out.
+    cv::Mat dynamic_mask;
     const auto exclude = [&] {
       cv::Mat m = exclusion();
-      const cv::Mat dynamic_mask = run_filter(stamp, r);
+      dynamic_mask = run_filter(stamp, r);
       if (!dynamic_mask.empty() && cv::countNonZero(dynamic_mask) > 0) {
         m = m.empty() ? dynamic_mask : (m | dynamic_mask);
         count.region = dynamic_mask;
@@ -407,6 +434,20 @@ struct System::Impl {
         case Sensor::kStereo: f = builder->stereo(grey, grey_right, m, t, &count); break;
         case Sensor::kRGBD: f = builder->rgbd(grey, depth_m, m, t, &count); break;
       }
+    }
+    if (keep_unchecked_candidates(f, stamp, dynamic_mask, r)) {
+      // Extracted again with them, on this thread (the worker is idle).
+      features::ExcludedCount kept;
+      tracking::StageTimes again;
+      cv::Mat m = exclusion();
+      if (cv::countNonZero(dynamic_mask) > 0) {
+        m = m.empty() ? dynamic_mask : (m | dynamic_mask);
+        kept.region = dynamic_mask;
+      }
+      f = sensor == Sensor::kStereo ? builder->stereo(grey, grey_right, m, again, &kept)
+                                    : builder->rgbd(grey, depth_m, m, again, &kept);
+      for (const auto& [stage, ms] : again) t[stage] += ms;
+      count = kept;
     }
     if (filter) filter->start_corners_ahead();  // the worker's core was the extraction's until now
     r.dynamic_keypoints = count.keypoints;

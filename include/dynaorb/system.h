@@ -143,6 +143,7 @@ struct SystemCounters {
   long labels_dropped = 0;  // label images ignored because of a wrong size or type
   long dynamic_all_frames = 0;      // frames the filter marked (nearly) all dynamic
   long dynamic_stage_failures = 0;  // stage runs that threw (their regions dropped)
+  long unchecked_kept = 0;   // first frames whose unchecked candidates were kept to start the map
   long lost = 0;            // frames with state kLost
   long initializations = 0; // map (re)initialisations
   long maps_dropped = 0;    // lost maps given up for a new one (TrackerOptions)

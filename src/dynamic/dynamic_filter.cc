@@ -473,6 +473,13 @@ void DynamicFilter::keyframe_made(const std::vector<cv::Point2f>& keypoints, con
     keyframes_.erase(keyframes_.begin(), keyframes_.end() - o_.keyframes);
 }
 
+void DynamicFilter::keep_candidates() {
+  if (!last_ || last_->candidates.empty() || last_->dynamic.size() != last_->candidates.size()) return;
+  cv::Mat rest;  // a new buffer: the old one may be shared
+  cv::bitwise_and(last_->dynamic, ~last_->candidates, rest);
+  last_->dynamic = rest;
+}
+
 void DynamicFilter::reset() {
   pending_.reset();
   ahead_pending_.reset();

@@ -452,6 +452,7 @@ PYBIND11_MODULE(_core, m) {
         d["labels_dropped"] = c.labels_dropped;
         d["dynamic_all_frames"] = c.dynamic_all_frames;
         d["dynamic_stage_failures"] = c.dynamic_stage_failures;
+        d["unchecked_kept"] = c.unchecked_kept;
         d["rejected_by_reason"] = c.rejected_by_reason;
         d["lost"] = c.lost;
         d["initializations"] = c.initializations;

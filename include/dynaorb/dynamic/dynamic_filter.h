@@ -189,6 +189,11 @@ class DynamicFilter {
   // The frame of the last process() became a keyframe with these keypoints
   // (tracked-image pixels) and depths (metres, <= 0: none).
   void keyframe_made(const std::vector<cv::Point2f>& keypoints, const std::vector<float>& depth);
+  // The caller tracked the last frame with its candidates after all (System:
+  // a first frame the map could not start from without them): that frame's
+  // dynamic mask loses them, so it says what tracking left out (saved masks,
+  // dense clouds, DDL-SLAM's keyframe points). Nothing without candidates.
+  void keep_candidates();
   // Forgets frames and keyframes (a SLAM reset); stages reset too.
   void reset();
 

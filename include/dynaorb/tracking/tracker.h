@@ -213,6 +213,9 @@ class Tracker {
   TrackOutcome track(map::Frame& frame);
   void reset();
   bool initialized() const { return initialized_; }
+  // Enough keypoints (and, stereo / RGB-D, keypoints with depth) to start a
+  // map from f: min_init_keypoints, min_init_depth_points, mono_init_min_keypoints.
+  bool can_initialize(const map::Frame& f) const;
   // Monocular: whether frame frame_id should be extracted with the larger
   // initialisation feature count (no map yet, or within
   // mono_init_feature_frames frames of the frame that made it and no frame
@@ -239,7 +242,6 @@ class Tracker {
   bool localization_mode() const { return localization_; }
 
  private:
-  bool can_initialize(const map::Frame& f) const;  // enough keypoints and depth for a map
   bool initialize(map::Frame& f);
   bool initialize_mono(map::Frame& f);  // mono_initialization.cc
   // A new map was made from f (f.reference set): tracking starts from it.

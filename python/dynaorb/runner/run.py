@@ -468,6 +468,7 @@ def _run(_core, opts: RunOptions, segmenter, semantic, tracker) -> dict:
                        "segmentation" if semantic is not None else None),
             "all_dynamic_frames": int(counters["dynamic_all_frames"]),
             "stage_failures": int(counters["dynamic_stage_failures"]),
+            "unchecked_kept": int(counters["unchecked_kept"]),
             "labels_dropped_by_core": int(counters["labels_dropped"]),
             "masks_saved": masks_saved if save_masks is not None else None,
             "summary": _dynamic_summary(dynamic_frames),

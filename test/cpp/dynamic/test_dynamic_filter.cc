@@ -551,6 +551,50 @@ TEST(SystemDynamic, LabelsDriveTheExclusionAndAreCounted) {
   EXPECT_EQ(d.fx, 500);
 }
 
+// drop_unchecked_rgbd drops the first frame's candidates, unless what is
+// left cannot start the map: then they are kept for that frame, and counted.
+TEST(SystemDynamic, TheFirstFrameKeepsItsUncheckedCandidatesWhenTheMapNeedsThem) {
+  SystemOptions o;
+  o.synchronous_mapping = true;
+  o.dynamic = DynamicFilterOptions::parse(
+      "Dynamic.stages: [semantic]\n"
+      "Dynamic.semantic: {policy: static_until_proven, margin: 0, drop_unchecked_rgbd: 1}\n", "du.yaml");
+  const cv::Mat rgb = texture(1);
+  const cv::Mat depth(480, 640, CV_16UC1, cv::Scalar(10000));
+  System plain(rgbd_settings(), Sensor::kRGBD);
+  const TrackResult base = plain.track_rgbd(rgb, depth, 1.0);
+  ASSERT_GT(base.keypoints, 500);
+  // A person over a quarter of the image: the rest starts the map without it.
+  cv::Mat some = cv::Mat::zeros(480, 640, CV_8UC1);
+  some(cv::Rect(200, 100, 200, 250)).setTo(15);
+  System sys(rgbd_settings(), Sensor::kRGBD, o);
+  const TrackResult r = sys.track_rgbd(rgb, depth, 1.0, cv::Mat(), some);
+  EXPECT_EQ(r.state, TrackingState::kOk);
+  EXPECT_EQ(r.dynamic_values.at("semantic.unchecked_dropped"), 1);
+  EXPECT_FALSE(r.dynamic_values.count("semantic.unchecked_kept"));
+  EXPECT_GT(r.dynamic_keypoints, 50);
+  EXPECT_EQ(sys.counters().unchecked_kept, 0);
+  // A view all movers but a strip: without them, too few keypoints for a map.
+  cv::Mat most(480, 640, CV_8UC1, cv::Scalar(15));
+  most(cv::Rect(0, 0, 640, 24)).setTo(0);
+  System full(rgbd_settings(), Sensor::kRGBD, o);
+  const TrackResult k = full.track_rgbd(rgb, depth, 1.0, cv::Mat(), most);
+  EXPECT_EQ(k.state, TrackingState::kOk);
+  EXPECT_EQ(k.dynamic_values.at("semantic.unchecked_dropped"), 1);
+  EXPECT_EQ(k.dynamic_values.at("semantic.unchecked_kept"), 1);
+  EXPECT_EQ(k.dynamic_keypoints, 0);
+  EXPECT_EQ(k.dynamic_fraction, 0.0);
+  EXPECT_EQ(k.keypoints, base.keypoints);  // the same extraction as without the filter
+  EXPECT_EQ(full.counters().unchecked_kept, 1);
+  EXPECT_EQ(full.counters().initializations, 1);
+  EXPECT_EQ(cv::countNonZero(full.last_dynamic_mask()), 0);  // the mask says what tracking left out
+  // The next frame has a previous one: its candidates stay static until proven, nothing is kept again.
+  const TrackResult next = full.track_rgbd(rgb, depth, 2.0, cv::Mat(), most);
+  EXPECT_EQ(next.state, TrackingState::kOk);
+  EXPECT_FALSE(next.dynamic_values.count("semantic.unchecked_dropped"));
+  EXPECT_EQ(full.counters().unchecked_kept, 1);
+}
+
 TEST(SystemDynamic, AFrameOfOnlyMovingObjectsDegrades) {
   SystemOptions o;
   o.synchronous_mapping = true;
