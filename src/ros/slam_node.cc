@@ -801,6 +801,9 @@ std::string SlamNode::stats_json() const {
     out << ", \"frames\": " << s.frames << ", \"tracked\": " << s.tracked << ", \"lost\": " << s.lost
         << ", \"rejected\": " << s.rejected << ", \"masks_dropped\": " << s.masks_dropped
         << ", \"relocalizations\": " << s.relocalizations << ", \"loops_closed\": " << s.loops_closed
+        << ", \"dynamic_all_frames\": " << s.dynamic_all_frames
+        << ", \"dynamic_stage_failures\": " << s.dynamic_stage_failures
+        << ", \"unchecked_kept\": " << s.unchecked_kept
         << ", \"keyframes\": " << m.keyframes << ", \"map_points\": " << m.points;
   }
   out << "}";

@@ -339,6 +339,14 @@ class SlamNodeTest(unittest.TestCase):
             # silent: the wait ended once, on ~first_labels_timeout; none: nobody to wait for.
             self.assertEqual(self.stats["first_labels_timed_out"], int(self.labels_mode == "silent"))
 
+    def test_dynamic_counters(self):
+        # The core's degradations reach ~stats. No stage fails on these clips,
+        # and their 640x480 first frames start the map without their movers.
+        for key in ("dynamic_all_frames", "dynamic_stage_failures", "unchecked_kept"):
+            self.assertIn(key, self.stats)
+        self.assertEqual(self.stats["dynamic_stage_failures"], 0)
+        self.assertEqual(self.stats["unchecked_kept"], 0)
+
     def test_inpainted_clouds(self):
         if not rospy.get_param("~inpainted_clouds", False):
             return
