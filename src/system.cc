@@ -388,11 +388,11 @@ struct System::Impl {
     if (sensor == Sensor::kMono || !filter || !f || tracker->initialized() || dynamic_mask.empty()) return false;
     const auto dropped = r.dynamic_values.find("semantic.unchecked_dropped");
     if (dropped == r.dynamic_values.end() || dropped->second == 0) return false;
+    const std::shared_ptr<const dynamic::FrameData> last = filter->last_frame();
+    if (!last || last->candidates.empty()) return false;
     if (tracker->can_initialize(map::Frame(next_frame_id, stamp, f))) return false;
     filter->keep_candidates();
-    const std::shared_ptr<const dynamic::FrameData> last = filter->last_frame();
-    if (!last || last->dynamic.size() != dynamic_mask.size()) return false;
-    dynamic_mask = last->dynamic;
+    dynamic_mask = last->dynamic;  // the same frame, its mask narrowed
     r.dynamic_fraction = static_cast<double>(cv::countNonZero(dynamic_mask)) / static_cast<double>(dynamic_mask.total());
     r.dynamic_values["semantic.unchecked_kept"] = 1;
     ++counters.unchecked_kept;
@@ -407,18 +407,30 @@ struct System::Impl {
     tracking::StageTimes t;
     std::shared_ptr<const map::Features> f;
     features::ExcludedCount count;
-    // The filter's mask, with the caller's: what the extraction leaves out.
-    cv::Mat dynamic_mask;
-    const auto exclude = [&] {
+    // The caller's mask with the filter's: what the extraction leaves out
+    // (c.region: the filter's part, whose keypoints it counts).
+    const auto with_filter = [this](const cv::Mat& dynamic, features::ExcludedCount& c) {
       cv::Mat m = exclusion();
-      dynamic_mask = run_filter(stamp, r);
-      if (!dynamic_mask.empty() && cv::countNonZero(dynamic_mask) > 0) {
-        m = m.empty() ? dynamic_mask : (m | dynamic_mask);
-        count.region = dynamic_mask;
+      if (!dynamic.empty() && cv::countNonZero(dynamic) > 0) {
+        m = m.empty() ? dynamic : (m | dynamic);
+        c.region = dynamic;
       }
       return m;
     };
+    cv::Mat dynamic_mask;
+    const auto exclude = [&] {
+      dynamic_mask = run_filter(stamp, r);
+      return with_filter(dynamic_mask, count);
+    };
     const bool init = sensor == Sensor::kMono && tracker->wants_init_features(next_frame_id);
+    const auto extract = [&](const cv::Mat& m, tracking::StageTimes& times, features::ExcludedCount& c) {
+      switch (sensor) {
+        case Sensor::kMono: return builder->mono(grey, m, times, init, &c);
+        case Sensor::kStereo: return builder->stereo(grey, grey_right, m, times, &c);
+        case Sensor::kRGBD: break;
+      }
+      return builder->rgbd(grey, depth_m, m, times, &c);
+    };
     if (overlap_extraction) {
       // The filter runs here while a worker thread detects the corners.
       const tracking::ExclusionSource source = exclude;
@@ -428,24 +440,13 @@ struct System::Impl {
         case Sensor::kRGBD: f = builder->rgbd(grey, depth_m, source, t, &count); break;
       }
     } else {
-      const cv::Mat m = exclude();
-      switch (sensor) {
-        case Sensor::kMono: f = builder->mono(grey, m, t, init, &count); break;
-        case Sensor::kStereo: f = builder->stereo(grey, grey_right, m, t, &count); break;
-        case Sensor::kRGBD: f = builder->rgbd(grey, depth_m, m, t, &count); break;
-      }
+      f = extract(exclude(), t, count);
     }
     if (keep_unchecked_candidates(f, stamp, dynamic_mask, r)) {
       // Extracted again with them, on this thread (the worker is idle).
       features::ExcludedCount kept;
       tracking::StageTimes again;
-      cv::Mat m = exclusion();
-      if (cv::countNonZero(dynamic_mask) > 0) {
-        m = m.empty() ? dynamic_mask : (m | dynamic_mask);
-        kept.region = dynamic_mask;
-      }
-      f = sensor == Sensor::kStereo ? builder->stereo(grey, grey_right, m, again, &kept)
-                                    : builder->rgbd(grey, depth_m, m, again, &kept);
+      f = extract(with_filter(dynamic_mask, kept), again, kept);
       for (const auto& [stage, ms] : again) t[stage] += ms;
       count = kept;
     }
