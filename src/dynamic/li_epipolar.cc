@@ -96,7 +96,7 @@ float li_disparity_at(const cv::Mat& disparity, const cv::Point2f& p, int radius
 
 LiEpipolarResult li_epipolar_check(const cv::Mat& prev_grey, const cv::Mat& cur_grey,
                                    const cv::Mat& disparity, const map::Calibration& calib,
-                                   const LiOptions& o) {
+                                   const LiOptions& o, const cv::Mat& prev_dynamic) {
   LiEpipolarResult r;
   auto t0 = Clock::now();
   const std::vector<cv::Point2f> corners = li_quadtree_fast(prev_grey, o);
@@ -147,11 +147,28 @@ LiEpipolarResult li_epipolar_check(const cv::Mat& prev_grey, const cv::Mat& cur_
     cv::undistortPoints(std::vector<cv::Point2f>(p), p, calib.K, calib.dist, cv::noArray(), calib.K);
     cv::undistortPoints(std::vector<cv::Point2f>(q), q, calib.K, calib.dist, cv::noArray(), calib.K);
   }
+  // The pairs F is fitted to: all, or those starting outside the previous
+  // frame's dynamic mask (when enough are left).
+  std::vector<cv::Point2f> fit_p, fit_q;
+  if (o.f_exclude_previous_dynamic && prev_dynamic.type() == CV_8UC1 && prev_dynamic.size() == prev_grey.size()) {
+    for (size_t i = 0; i < r.tracks.size(); ++i) {
+      const cv::Point2f& s = r.tracks[i].prev;
+      const int x = std::clamp(cvRound(s.x), 0, prev_dynamic.cols - 1);
+      const int y = std::clamp(cvRound(s.y), 0, prev_dynamic.rows - 1);
+      if (prev_dynamic.at<unsigned char>(y, x)) continue;
+      fit_p.push_back(p[i]);
+      fit_q.push_back(q[i]);
+    }
+    r.f_excluded = static_cast<int>(p.size() - fit_p.size());
+    if (static_cast<int>(fit_p.size()) < o.min_points) fit_p.clear();
+  }
+  const bool subset = !fit_p.empty() && fit_p.size() < p.size();
+  r.f_fitted = static_cast<int>(subset ? fit_p.size() : p.size());
   std::vector<unsigned char> inlier;
   cv::Mat F;
   try {
-    F = cv::findFundamentalMat(p, q, cv::FM_RANSAC, o.f_ransac_threshold_px, o.f_ransac_confidence,
-                               o.f_ransac_iterations, inlier);
+    F = cv::findFundamentalMat(subset ? fit_p : p, subset ? fit_q : q, cv::FM_RANSAC, o.f_ransac_threshold_px,
+                               o.f_ransac_confidence, o.f_ransac_iterations, inlier);
   } catch (const cv::Exception&) {
     F.release();
   }

@@ -32,6 +32,7 @@ void LiOptions::read(const cv::FileNode& node) {
   read_option(node, "f_ransac_threshold_px", f_ransac_threshold_px);
   read_option(node, "f_ransac_confidence", f_ransac_confidence);
   read_option(node, "f_ransac_iterations", f_ransac_iterations);
+  read_option(node, "f_exclude_previous_dynamic", f_exclude_previous_dynamic);
   read_option(node, "min_points", min_points);
   read_option(node, "alpha_epi", alpha_epi);
   read_option(node, "beta_epi", beta_epi);

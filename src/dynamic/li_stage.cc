@@ -106,7 +106,7 @@ void LiStage::detect(Context& ctx, StageReport& report) {
     }
 
     // Step 2: dynamic feature points (eq. 1-3).
-    last_.epipolar = li_epipolar_check(prev, grey, last_.disparity, *ctx.calib, o_);
+    last_.epipolar = li_epipolar_check(prev, grey, last_.disparity, *ctx.calib, o_, ctx.previous->dynamic);
     const LiEpipolarResult& e = last_.epipolar;
     v["corners_ms"] = e.corners_ms;
     v["flow_ms"] = e.flow_ms;
@@ -115,6 +115,10 @@ void LiStage::detect(Context& ctx, StageReport& report) {
     v["tracked"] = static_cast<double>(e.tracks.size());
     v["judged"] = e.judged;
     v["f_inliers"] = e.f_inliers;
+    if (o_.f_exclude_previous_dynamic) {
+      v["f_fitted"] = e.f_fitted;
+      v["f_excluded"] = e.f_excluded;
+    }
     if (!e.failure.empty()) {
       v[e.failure] = 1;
       return;

@@ -31,7 +31,9 @@ struct LiEpipolarResult {
   int dynamic = 0;
   bool has_F = false;
   cv::Matx33d F;                // q^T F p = 0, p previous, q current (undistorted px)
-  int f_inliers = 0;
+  int f_inliers = 0;            // of the pairs F was fitted to
+  int f_fitted = 0;             // pairs F was fitted to
+  int f_excluded = 0;           // pairs in the previous frame's dynamic mask (f_exclude_previous_dynamic)
   std::string failure;          // "" or "too_few_points" / "f_failed"
   double corners_ms = 0, flow_ms = 0, fmatrix_ms = 0;
 };
@@ -49,8 +51,11 @@ float li_disparity_at(const cv::Mat& disparity, const cv::Point2f& p, int radius
 // The whole step on the previous and current left images (CV_8UC1, same
 // size) and the current disparity (CV_32FC1, full resolution). Never throws:
 // too few tracks or a failed F give `failure` and no dynamic point.
+// prev_dynamic: the previous frame's dynamic mask (CV_8UC1, the images'
+// size; else ignored), whose pairs F is not fitted to when
+// o.f_exclude_previous_dynamic is set.
 LiEpipolarResult li_epipolar_check(const cv::Mat& prev_grey, const cv::Mat& cur_grey,
                                    const cv::Mat& disparity, const map::Calibration& calib,
-                                   const LiOptions& o);
+                                   const LiOptions& o, const cv::Mat& prev_dynamic = cv::Mat());
 
 }  // namespace dynaorb::dynamic

@@ -88,6 +88,52 @@ TEST(LiEpipolar, BoxPointsBreakTheEpipolarConstraint) {
               static_dyn, static_n, median(disagreement));
 }
 
+// f_exclude_previous_dynamic: F is fitted to the pairs starting outside the
+// previous frame's dynamic mask, every pair is judged by it; with too few
+// left, or the option off, F is fitted to all of them.
+TEST(LiEpipolar, FIsFittedOutsideThePreviousDynamicMask) {
+  const auto calib = make_calibration(Sensor::kStereo, 640, 480, 500, 0.1);
+  const auto pair = dynaorb::test::li::render_stereo_pair(*calib);
+  LiOptions o;
+  o.f_exclude_previous_dynamic = true;
+  const cv::Mat disparity = li_disparity(pair.cur->grey, pair.cur->right, o);
+  const cv::Mat box = pair.prev_view.object == dynaorb::test::li::kMoverIndex;  // CV_8UC1 255 on the box
+  const LiEpipolarResult r = li_epipolar_check(pair.prev->grey, pair.cur->grey, disparity, *calib, o, box);
+  ASSERT_TRUE(r.has_F) << r.failure;
+  int in_box = 0, box_n = 0, box_dyn = 0, static_n = 0, static_dyn = 0;
+  for (const LiTrack& tr : r.tracks) {
+    const bool from_box = box.at<unsigned char>(cvRound(tr.prev.y), cvRound(tr.prev.x)) != 0;
+    in_box += from_box ? 1 : 0;
+    if (tr.distance < 0) continue;
+    (from_box ? box_n : static_n) += 1;
+    (from_box ? box_dyn : static_dyn) += tr.dynamic ? 1 : 0;
+  }
+  ASSERT_GT(in_box, 20);
+  EXPECT_EQ(r.f_excluded, in_box);
+  EXPECT_EQ(r.f_fitted, static_cast<int>(r.tracks.size()) - in_box);
+  EXPECT_LE(r.f_inliers, r.f_fitted);
+  // The box's pairs are still judged, and still found moving.
+  EXPECT_GT(box_dyn, 0.8 * box_n);
+  EXPECT_LT(static_dyn, 0.06 * static_n);
+
+  // A mask over everything leaves fewer than min_points: F from all pairs.
+  const cv::Mat all(box.size(), CV_8UC1, cv::Scalar(255));
+  const LiEpipolarResult a = li_epipolar_check(pair.prev->grey, pair.cur->grey, disparity, *calib, o, all);
+  ASSERT_TRUE(a.has_F);
+  EXPECT_EQ(a.f_excluded, static_cast<int>(a.tracks.size()));
+  EXPECT_EQ(a.f_fitted, static_cast<int>(a.tracks.size()));
+  // Off (the paper), or a mask of another size: the mask is not read.
+  o.f_exclude_previous_dynamic = false;
+  const LiEpipolarResult off = li_epipolar_check(pair.prev->grey, pair.cur->grey, disparity, *calib, o, box);
+  EXPECT_EQ(off.f_excluded, 0);
+  EXPECT_EQ(off.f_fitted, static_cast<int>(off.tracks.size()));
+  o.f_exclude_previous_dynamic = true;
+  const LiEpipolarResult small =
+      li_epipolar_check(pair.prev->grey, pair.cur->grey, disparity, *calib, o, cv::Mat(10, 10, CV_8UC1, cv::Scalar(255)));
+  EXPECT_EQ(small.f_excluded, 0);
+  EXPECT_EQ(small.f_fitted, static_cast<int>(small.tracks.size()));
+}
+
 TEST(LiEpipolar, TooFewTracksNoF) {
   const auto calib = make_calibration(Sensor::kStereo, 640, 480, 500, 0.1);
   const cv::Mat flat(480, 640, CV_8UC1, cv::Scalar(100));
