@@ -13,16 +13,6 @@
 
 namespace dynaorb::dynamic::ddl {
 
-namespace {
-
-bool mask_at(const cv::Mat& mask, const cv::Point2f& p) {
-  const int x = cvRound(p.x), y = cvRound(p.y);
-  if (x < 0 || y < 0 || x >= mask.cols || y >= mask.rows) return false;
-  return mask.at<unsigned char>(y, x) != 0;
-}
-
-}  // namespace
-
 bool back_project(const KeyFrameData& kf, const view::Camera& camera, double max_depth, Reference& r) {
   if (!kf.frame || !kf.frame->T_cw || kf.keypoints.empty()) return false;
   const FrameData& f = *kf.frame;
@@ -43,7 +33,7 @@ bool back_project(const KeyFrameData& kf, const view::Camera& camera, double max
       if (x >= 0 && y >= 0 && x < f.depth.cols && y < f.depth.rows) d = f.depth.at<float>(y, x);
     }
     if (!view::valid_depth(d) || (max_depth > 0 && d > max_depth)) continue;
-    if (has_mask && mask_at(f.dynamic, p)) continue;
+    if (has_mask && view::mask_at(f.dynamic, p)) continue;
     px.push_back(p);
     z.push_back(d);
   }

@@ -8,6 +8,7 @@
 
 #include "../features/quadtree.h"
 #include "dynaorb/core/stopwatch.h"
+#include "view_geometry.h"
 
 namespace dynaorb::dynamic {
 
@@ -150,12 +151,9 @@ LiEpipolarResult li_epipolar_check(const cv::Mat& prev_grey, const cv::Mat& cur_
   // The pairs F is fitted to: all, or those starting outside the previous
   // frame's dynamic mask (when enough are left).
   std::vector<cv::Point2f> fit_p, fit_q;
-  if (o.f_exclude_previous_dynamic && prev_dynamic.type() == CV_8UC1 && prev_dynamic.size() == prev_grey.size()) {
+  if (o.f_exclude_previous_dynamic && prev_dynamic.size() == prev_grey.size()) {
     for (size_t i = 0; i < r.tracks.size(); ++i) {
-      const cv::Point2f& s = r.tracks[i].prev;
-      const int x = std::clamp(cvRound(s.x), 0, prev_dynamic.cols - 1);
-      const int y = std::clamp(cvRound(s.y), 0, prev_dynamic.rows - 1);
-      if (prev_dynamic.at<unsigned char>(y, x)) continue;
+      if (view::mask_at(prev_dynamic, r.tracks[i].prev)) continue;
       fit_p.push_back(p[i]);
       fit_q.push_back(q[i]);
     }

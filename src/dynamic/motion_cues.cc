@@ -66,12 +66,7 @@ bool away_from_edge(const cv::Point2f& p, const cv::Size& size, int border) {
          p.y <= size.height - 1 - border;
 }
 
-bool mask_at(const cv::Mat& mask, const cv::Point2f& p) {
-  if (mask.empty() || mask.type() != CV_8UC1 || !finite(p)) return false;
-  const int x = cvRound(p.x), y = cvRound(p.y);
-  if (x < 0 || y < 0 || x >= mask.cols || y >= mask.rows) return false;
-  return mask.at<unsigned char>(y, x) != 0;
-}
+using view::mask_at;
 
 bool valid_depth(float z) { return std::isfinite(z) && z > 0.f; }
 

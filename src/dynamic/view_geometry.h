@@ -64,6 +64,15 @@ inline bool pnp_ransac_refined(const std::vector<cv::Point3f>& object, const std
   return true;
 }
 
+// Whether a CV_8UC1 mask is set at p's nearest pixel: false off the mask,
+// for a non-finite p and for an empty mask or another type.
+inline bool mask_at(const cv::Mat& mask, const cv::Point2f& p) {
+  if (mask.empty() || mask.type() != CV_8UC1 || !std::isfinite(p.x) || !std::isfinite(p.y)) return false;
+  const int x = cvRound(p.x), y = cvRound(p.y);
+  if (x < 0 || y < 0 || x >= mask.cols || y >= mask.rows) return false;
+  return mask.at<unsigned char>(y, x) != 0;
+}
+
 inline bool inside(const cv::Point2f& p, const cv::Size& size, int border = 0) {
   return std::isfinite(p.x) && std::isfinite(p.y) && p.x >= border && p.y >= border &&
          p.x <= size.width - 1 - border && p.y <= size.height - 1 - border;
