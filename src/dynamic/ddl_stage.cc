@@ -37,6 +37,7 @@ void DdlOptions::read(const cv::FileNode& node) {
   read_option(node, "refine_min_inliers", refine_min_inliers);
   read_option(node, "refine_points_per_keyframe", refine_points_per_keyframe);
   read_option(node, "vanished_points_dynamic", vanished_points_dynamic);
+  read_option(node, "seed_sliding_surfaces", seed_sliding_surfaces);
   read_option(node, "confirm_with_keyframes", confirm_with_keyframes);
   read_option(node, "confirm_search_radius_px", confirm_search_radius_px);
   read_option(node, "confirm_min_zncc", confirm_min_zncc);
@@ -314,7 +315,7 @@ void DdlStage::process(Context& ctx, StageReport& report) {
 
   const double cos_tau_alpha = std::cos(o_.parallax_threshold_deg * M_PI / 180.0);
   int projected = 0, parallax_rejected = 0, no_depth = 0, vanished = 0, seen_static_rejected = 0,
-      vanished_rejected = 0;
+      vanished_rejected = 0, sliding_points = 0;
   std::vector<cv::Point> seeds;
   for (const Reference& r : refs) {
     for (size_t i = 0; i < r.X_w.size(); ++i) {
@@ -359,7 +360,14 @@ void DdlStage::process(Context& ctx, StageReport& report) {
           continue;
         }
       }
-      if (covered || gone) {
+      // A keyframe point that lands on a surface at its own depth which the
+      // keyframes show moving (other texture at that depth: a surface
+      // sliding along itself) passes both depth tests; with
+      // seed_sliding_surfaces it is dynamic too.
+      const bool sliding = !covered && !gone && o_.seed_sliding_surfaces && o_.confirm_with_keyframes &&
+                           (evidence(q.x, q.y), keyframe_evidence->moving_area(q.x, q.y));
+      if (sliding) ++sliding_points;
+      if (covered || gone || sliding) {
         if (gone) ++vanished;
         report.dynamic_points.push_back(p);
         seeds.push_back(q);
@@ -375,6 +383,7 @@ void DdlStage::process(Context& ctx, StageReport& report) {
   report.values["vanished"] = vanished;
   report.values["seen_static_rejected"] = seen_static_rejected;
   report.values["vanished_rejected"] = vanished_rejected;
+  report.values["sliding"] = sliding_points;
   report.values["dynamic"] = static_cast<double>(report.dynamic_points.size());
   report.values["static"] = static_cast<double>(report.static_points.size());
 

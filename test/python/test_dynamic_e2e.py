@@ -91,8 +91,12 @@ SEMANTIC_CANDIDATES = "Dynamic.semantic: {classes: voc, margin: 5, policy: stati
 # are the issue's 0.9 where a stage reaches it; below it they are regression
 # bounds a little under the measured values (seed 0), and the target is missed:
 #   dm:    1.000 / 1.000 (paper's eq. 6-8 with the ego-motion of motion_cues)
-#   ddl:   1.00 / 0.903, scored without DDL-SLAM's union with every
-#          movable-class region (which takes in the parked car: precision 0.78)
+#   ddl:   0.992 / 0.967 (persons 0.970, vehicle 0.959) with sliding
+#          surfaces seeding regions (seed_sliding_surfaces, ours: the side of
+#          the vehicle beside the camera keeps its depth; seeds 1 / 2: 0.974 /
+#          0.945, 0.990 / 0.946); 0.998 / 0.903 (vehicle 0.738) without;
+#          scored without DDL-SLAM's union with every movable-class region
+#          (which takes in the parked car: precision 0.78)
 #   stdyn: with the papers' values (F from all points, one dynamic point moves
 #          an object) 0.86 / 0.94; with F from the points outside the
 #          candidates, refined on its inliers, a 1 px RANSAC threshold and
@@ -118,7 +122,7 @@ SEMANTIC_CANDIDATES = "Dynamic.semantic: {classes: voc, margin: 5, policy: stati
 STAGES = {
     "dm": ("rgbd", "Dynamic.stages: [semantic, dm]\n" + SEMANTIC_CANDIDATES, 0.9, 0.9),
     "ddl": ("rgbd", "Dynamic.stages: [semantic, ddl]\n" + SEMANTIC_CANDIDATES
-            + "Dynamic.ddl: {combine_semantic: 0}\n", 0.9, 0.85),
+            + "Dynamic.ddl: {combine_semantic: 0, seed_sliding_surfaces: 1}\n", 0.9, 0.9),
     "stdyn": ("stereo", "Dynamic.stages: [semantic, stdyn]\n" + SEMANTIC_CANDIDATES
               + "Dynamic.stdyn: {f_exclude_candidates: 1, f_refine_on_inliers: 1, f_ransac_threshold_px: 1.0, "
                 "min_dynamic_ratio: 0.1}\n", 0.9, 0.85),
@@ -140,7 +144,11 @@ def test_geometric_stage_precision_and_recall(tmp_path, synth_scenes, stage):
     print(f"{stage}: precision {precision:.3f} recall {recall:.3f} over {frames} frames; recall persons "
           f"{by_class[PERSON]:.3f} vehicle {by_class[CAR]:.3f}")
     assert precision >= least_precision and recall >= least_recall, (stage, precision, recall)
-    if stage == "li":  # measured 0.985 / 0.924 (0.991 / 0.930 at 15 px; the vehicle 0.77 without rigid_check)
+    # The depth-based stages catch the vehicle moving along its epipolar
+    # lines too. Measured persons / vehicle: li 0.985 / 0.924 (0.991 / 0.930
+    # at 15 px; the vehicle 0.77 without rigid_check), ddl 0.970 / 0.959
+    # (0.963 / 0.738 without seed_sliding_surfaces).
+    if stage in ("li", "ddl"):
         assert by_class[PERSON] >= 0.9 and by_class[CAR] >= 0.9, by_class
     assert stats["dynamic_filter"]["stage_failures"] == 0
 

@@ -212,6 +212,56 @@ TEST(DdlStage, BoxRecedingWithTheCameraNeedsVanishedPoints) {
   }
 }
 
+// The side of a vehicle driving beside the camera, faster than it: a
+// surface sliding along itself. Its old keypoints land on it again at their
+// own depth (neither depth test fires); only other texture at that depth
+// tells that it moved.
+TEST(DdlStage, SideOfAVehicleBesideTheCameraNeedsSlidingSurfaces) {
+  const Eigen::Matrix3d side = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  auto vehicle = [&](int k) {
+    // The room without its left box, which would hide the vehicle.
+    std::vector<TexturedQuad> s = scene(std::nullopt);
+    s.erase(s.begin() + 2);
+    s.push_back(make_quad({-0.6, 0.3, 2.6 + 0.2 * k}, side, 4.0, 0.4, 100, 78, 15));
+    return s;
+  };
+  auto camera = [](int k) { return Eigen::Vector3d(0, 0, 0.08 * k); };
+  Sequence s;
+  s.calib = make_calibration(Sensor::kRGBD, kW, kH, kF, 0.1);
+  for (int k = 0; k <= 4; ++k) {
+    const Eigen::Isometry3d T_cw = camera_at(camera(k));
+    s.keyframes.push_back(make_keyframe(make_view(k, vehicle(k), T_cw, *s.calib), T_cw, false));
+  }
+  s.T_cw_current = camera_at(camera(6));
+  s.current = make_view(6, vehicle(6), s.T_cw_current, *s.calib);
+  ASSERT_GT(cv::countNonZero(s.current.mover), 0.02 * kW * kH);
+  const auto on_vehicle = [&](const StageReport& r) {
+    int n = 0;
+    for (const cv::Point2f& p : r.dynamic_points) n += s.current.mover.at<unsigned char>(p) != 0;
+    return n;
+  };
+  DdlOptions sliding;
+  sliding.seed_sliding_surfaces = true;
+  Context ctx = make_context(s);
+  DdlStage stage(sliding);
+  const Outcome on = evaluate(ctx, stage, s.current.mover);
+  Context ctx_off = make_context(s);
+  DdlStage printed;
+  const Outcome off = evaluate(ctx_off, printed, s.current.mover);
+  std::printf("vehicle side: %d / %d dynamic points with / without sliding surfaces (%g sliding), "
+              "marked %.3f / %.3f, static marked %.4f / %.4f\n",
+              on_vehicle(on.report), on_vehicle(off.report), on.report.values.at("sliding"), on.mover_coverage,
+              off.mover_coverage, on.static_marked, off.static_marked);
+  // Without them the side has no dynamic point of its own (what reaches it
+  // grows from elsewhere); with them its points are dynamic.
+  EXPECT_LE(on_vehicle(off.report), 2);
+  EXPECT_GT(on_vehicle(on.report), 50);
+  EXPECT_GT(on.report.values.at("sliding"), 50);
+  EXPECT_EQ(off.report.values.at("sliding"), 0);
+  EXPECT_GT(on.mover_coverage, 0.8);
+  EXPECT_LT(on.static_marked, 0.01);
+}
+
 TEST(DdlStage, ParallaxOcclusionOfAStaticRoomIsNotMotion) {
   // No mover; the camera slides sideways, so background keypoints end up
   // behind the static boxes: Algorithm 1 alone calls that motion.
@@ -224,6 +274,15 @@ TEST(DdlStage, ParallaxOcclusionOfAStaticRoomIsNotMotion) {
     const Outcome o = evaluate(ctx, stage, s.current.mover);
     EXPECT_LT(o.static_marked, 0.002);
     EXPECT_GT(o.report.values.at("seen_static_rejected"), 0);
+  }
+  {
+    // Nor does it slide: the sliding-surface seeds find nothing here.
+    Context ctx = make_context(s);
+    DdlOptions sliding;
+    sliding.seed_sliding_surfaces = true;
+    DdlStage stage(sliding);
+    const Outcome o = evaluate(ctx, stage, s.current.mover);
+    EXPECT_LT(o.static_marked, 0.002);
   }
   {
     Context ctx = make_context(s);
@@ -437,6 +496,7 @@ TEST(DdlStage, RegionGrowingFollowsDepthAndStopsAtEdges) {
 TEST(DdlStage, OptionsReadKeepDefaultsAndRejectWrongTypes) {
   cv::FileStorage fs(
       "%YAML:1.0\nddl:\n  reference_keyframes: 3\n  depth_threshold_m: 0.3\n  vanished_points_dynamic: false\n"
+      "  seed_sliding_surfaces: 1\n"
       "bad:\n  dilation_px: 1.5\n",
       cv::FileStorage::READ | cv::FileStorage::MEMORY);
   DdlOptions o;
@@ -444,6 +504,8 @@ TEST(DdlStage, OptionsReadKeepDefaultsAndRejectWrongTypes) {
   EXPECT_EQ(o.reference_keyframes, 3);
   EXPECT_DOUBLE_EQ(o.depth_threshold_m, 0.3);
   EXPECT_FALSE(o.vanished_points_dynamic);
+  EXPECT_TRUE(o.seed_sliding_surfaces);
+  EXPECT_FALSE(DdlOptions().seed_sliding_surfaces);
   EXPECT_DOUBLE_EQ(o.parallax_threshold_deg, 30.0);
   EXPECT_TRUE(o.confirm_with_keyframes);
   DdlOptions p;
