@@ -57,11 +57,7 @@ std::optional<RegionsRequest> DmStage::regions_wanted(const Context& ctx) const 
   return regions_request(ctx);
 }
 
-void DmStage::reset() {
-  memory_frame_ = -1;
-  memory_age_.release();
-  memory_static_.release();
-}
+void DmStage::reset() { memory_.reset(); }
 
 namespace {
 
@@ -101,10 +97,8 @@ void DmStage::process(Context& ctx, StageReport& report) {
   const DmOptions& o = options_;
   const bool mono = ctx.sensor == Sensor::kMono;
   // The memory only speaks for the frame right before this one.
-  const bool memory_usable = ctx.previous && memory_frame_ >= 0 && ctx.previous->id == memory_frame_ &&
-                             memory_age_.size() == ctx.current.candidates.size();
-  cv::Mat prev_age = memory_usable ? memory_age_ : cv::Mat();  // non-zero: dynamic
-  cv::Mat prev_static = memory_usable ? memory_static_ : cv::Mat();
+  const bool memory_usable = ctx.previous && memory_.holds(ctx.previous->id, ctx.current.candidates.size());
+  const RegionMemory previous = std::move(memory_);
   reset();
   auto skip = [&](const char* why) { val[why] = 1; };
 
@@ -255,27 +249,12 @@ void DmStage::process(Context& ctx, StageReport& report) {
   // overlaps with both, and the least age of the dynamic pixels it covers,
   // counted in one pass over the region image.
   const int keep_frames = mono ? o.keep_moving_frames_mono : o.keep_moving_frames;
-  std::vector<int> overlap_dyn(regions.count + 1, 0), overlap_static(regions.count + 1, 0);
-  std::vector<int> least_age(regions.count + 1, 255);
-  if ((o.few_points_policy == "previous" || keep_frames > 0) && !prev_age.empty()) {
-    for (int y = 0; y < regions.ids.rows; ++y) {
-      const int* id = regions.ids.ptr<int>(y);
-      const unsigned char* pa = prev_age.ptr<unsigned char>(y);
-      const unsigned char* ps = prev_static.ptr<unsigned char>(y);
-      for (int x = 0; x < regions.ids.cols; ++x)
-        if (id[x] > 0) {
-          if (pa[x] != 0) {
-            ++overlap_dyn[id[x]];
-            least_age[id[x]] = std::min<int>(least_age[id[x]], pa[x]);
-          }
-          overlap_static[id[x]] += ps[x] != 0;
-        }
-    }
-  }
+  const RegionInheritance inherited =
+      previous.inherit(regions, memory_usable && (o.few_points_policy == "previous" || keep_frames > 0));
   const double fraction = mono ? o.region_dynamic_fraction_mono : o.region_dynamic_fraction;
   // Age of each dynamic region: 1 when its own points proved it moving in
   // this frame, else one more than the least age of what it inherited.
-  std::vector<unsigned char> region_age(regions.count + 1, 0);
+  std::vector<unsigned char> ages(regions.count + 1, 0);
   int marked = 0, few = 0, few_kept_dynamic = 0, kept_moving = 0;
   for (int r = 1; r <= regions.count; ++r) {
     bool dyn = false, proven = false;
@@ -285,38 +264,19 @@ void DmStage::process(Context& ctx, StageReport& report) {
       ++few;
       if (o.few_points_policy == "dynamic") {
         dyn = proven = true;
-      } else if (o.few_points_policy == "previous" && !prev_age.empty()) {
-        dyn = overlap_dyn[r] > 0 && overlap_dyn[r] >= overlap_static[r];
+      } else if (o.few_points_policy == "previous" && memory_usable) {
+        dyn = inherited.dynamic_pixels[r] > 0 && inherited.dynamic_pixels[r] >= inherited.static_pixels[r];
       }
       few_kept_dynamic += dyn;
     }
-    if (!dyn && keep_frames > 0 && least_age[r] <= keep_frames &&
-        overlap_dyn[r] >= o.keep_moving_overlap * regions.pixels[r - 1]) {
+    if (!dyn && inherited.keeps_moving(regions, r, keep_frames, o.keep_moving_overlap)) {
       dyn = true;
       ++kept_moving;
     }
-    if (dyn) region_age[r] = proven ? 1 : static_cast<unsigned char>(std::min(least_age[r] + 1, 255));
+    if (dyn) ages[r] = region_age(proven, inherited.least_age[r]);
     marked += dyn;
   }
-  cv::Mat decided_age(cand.size(), CV_8UC1, cv::Scalar(0));
-  cv::Mat decided_static(cand.size(), CV_8UC1, cv::Scalar(0));
-  for (int y = 0; y < regions.ids.rows; ++y) {
-    const int* id = regions.ids.ptr<int>(y);
-    unsigned char* da = decided_age.ptr<unsigned char>(y);
-    unsigned char* ds = decided_static.ptr<unsigned char>(y);
-    for (int x = 0; x < regions.ids.cols; ++x)
-      if (id[x] > 0) {
-        if (region_age[id[x]] != 0)
-          da[x] = region_age[id[x]];
-        else
-          ds[x] = 255;
-      }
-  }
-  cv::Mat decided_dynamic = decided_age != 0;
-  cv::bitwise_or(ctx.dynamic, decided_dynamic, ctx.dynamic);
-  memory_frame_ = ctx.current.id;
-  memory_age_ = decided_age;
-  memory_static_ = decided_static;
+  cv::bitwise_or(ctx.dynamic, memory_.remember(ctx.current.id, regions, ages), ctx.dynamic);
 
   report.regions = marked;
   val["regions"] = regions.count;

@@ -33,6 +33,8 @@ void StdynOptions::read(const cv::FileNode& node) {
   read_option(node, "min_dynamic_points", min_dynamic_points);
   read_option(node, "min_dynamic_ratio", min_dynamic_ratio);
   read_option(node, "object_search_radius_px", object_search_radius_px);
+  read_option(node, "keep_moving_frames", keep_moving_frames);
+  read_option(node, "keep_moving_overlap", keep_moving_overlap);
   read_option(node, "mark_points_without_labels", mark_points_without_labels);
   read_option(node, "no_labels_point_radius_px", no_labels_point_radius_px);
   if (detail::has_key(node, "movable_labels")) {
@@ -66,6 +68,8 @@ void StdynOptions::validate() const {
   if (!(min_dynamic_ratio >= 0 && min_dynamic_ratio <= 1))
     c.fail("min_dynamic_ratio", min_dynamic_ratio, "in [0, 1] (0: no ratio)");
   c.at_least("object_search_radius_px", object_search_radius_px, 0);
+  c.at_least("keep_moving_frames", keep_moving_frames, 0);
+  c.between("keep_moving_overlap", keep_moving_overlap, 0, 1, true);
   c.at_least("no_labels_point_radius_px", no_labels_point_radius_px, 1);
   for (int id : movable_labels)
     if (id < 0 || id > 255) c.fail("movable_labels", id, "a list of class ids 0..255");
@@ -184,6 +188,12 @@ bool StdynStage::needs_motion_cues_for(const Context& ctx) const {
 void StdynStage::process(Context& ctx, StageReport& report) {
   auto& val = report.values;
   val["threshold_px"] = o_.epipolar_threshold_px;
+  // The memory only speaks for the frame right before this one; a frame
+  // that decides nothing leaves none.
+  const bool memory_usable = o_.keep_moving_frames > 0 && ctx.previous &&
+                             memory_.holds(ctx.previous->id, frame_size(ctx));
+  const RegionMemory previous = std::move(memory_);
+  memory_.reset();
   if (!ctx.previous) {
     val["skipped_no_previous"] = 1;
     return;
@@ -369,15 +379,21 @@ void StdynStage::process(Context& ctx, StageReport& report) {
     ++n_all[id];
     n_dyn[id] += dynamic[k];
   }
-  std::vector<unsigned char> moving(n_objects + 1, 0);
-  int n_moving = 0;
+  const RegionInheritance inherited = previous.inherit(objects, memory_usable);
+  std::vector<unsigned char> moving(n_objects + 1, 0);  // the age of a moving object's decision
+  int n_moving = 0, kept_moving = 0;
   for (int id = 1; id <= n_objects; ++id) {
     const bool enough = n_dyn[id] >= std::max(o_.min_dynamic_points, 1);
     const bool ratio =
         o_.min_dynamic_ratio <= 0 || (n_all[id] > 0 && n_dyn[id] >= o_.min_dynamic_ratio * n_all[id]);
-    moving[id] = enough && ratio;
-    n_moving += moving[id];
+    const bool proven = enough && ratio;
+    const bool kept = !proven && inherited.keeps_moving(objects, id, o_.keep_moving_frames, o_.keep_moving_overlap);
+    if (proven || kept) moving[id] = region_age(proven, inherited.least_age[id]);
+    n_moving += moving[id] != 0;
+    kept_moving += kept;
   }
+  val["kept_moving"] = kept_moving;
+  if (o_.keep_moving_frames > 0) memory_.remember(ctx.current.id, objects, moving);
   // Whole objects go into the mask: "ORB features inside segmented objects ... are rejected".
   if (n_moving > 0) {
     for (int v = 0; v < ids.rows; ++v) {

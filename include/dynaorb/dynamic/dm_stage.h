@@ -30,6 +30,7 @@
 #include <opencv2/core.hpp>
 #include <string>
 
+#include "dynaorb/dynamic/region_memory.h"
 #include "dynaorb/dynamic/stage.h"
 
 namespace dynaorb::dynamic {
@@ -124,11 +125,8 @@ class DmStage : public Stage {
   }
   DmOptions options_;
   // This stage's decisions on the last frame it processed, for the
-  // "previous" policy and keep_moving_frames: pixels of regions it declared
-  // dynamic (their age, non-zero: 1 when proven in that frame, n when kept
-  // n - 1 frames after that) and static (255).
-  long memory_frame_ = -1;
-  cv::Mat memory_age_, memory_static_;
+  // "previous" policy and keep_moving_frames.
+  RegionMemory memory_;
 };
 
 }  // namespace dynaorb::dynamic

@@ -288,6 +288,64 @@ TEST(StdynStage, MotionAlongTheEpipolarLinesIsInvisible) {
   EXPECT_DOUBLE_EQ(marked_fraction(r3.dynamic, across.cur->labels == kPerson), 1.0);
 }
 
+// keep_moving_frames (ours): the person, proven moving while it crosses the
+// epipolar lines, stays moving in the next frames while it moves along them
+// (where the check sees nothing), for up to keep_moving_frames frames after
+// the proof, and only from the frame right before.
+TEST(StdynStage, AnObjectProvenMovingStaysMovingForKeepMovingFrames) {
+  StdynOptions o;
+  o.min_dynamic_ratio = 0.3;
+  o.keep_moving_frames = 2;
+  StdynStage stage(o);
+  const auto run = [&](Pair& p, long prev_id) {
+    p.prev->id = prev_id;
+    p.cur->id = prev_id + 1;
+    Context ctx = context(Sensor::kMono, p.calib, *p.cur, p.prev);
+    ctx.dynamic = cv::Mat(kH, kW, CV_8UC1, cv::Scalar(0));
+    ctx.tracked = &p.tracked;
+    Outcome r;
+    stage.process(ctx, r.report);
+    r.dynamic = ctx.dynamic;
+    return r;
+  };
+  Pair across = make_frames(street(cv::Vec3d(0, 0.08, 0)));
+  Scene s = street(cv::Vec3d(0, 0, 0));
+  s.planes.back().v = 0.6 * (s.R.t() * s.t);
+  Pair along = make_frames(s);
+  const cv::Mat person = along.cur->labels == kPerson, car = along.cur->labels == kCar;
+
+  const Outcome proof = run(across, 0);  // frame 1
+  EXPECT_EQ(proof.report.regions, 1);
+  EXPECT_EQ(value(proof.report, "kept_moving"), 0);
+  for (long frame = 2; frame <= 4; ++frame) {
+    const Outcome r = run(along, frame - 1);
+    const bool kept = frame <= 3;  // 1 and 2 frames after the proof
+    EXPECT_EQ(value(r.report, "kept_moving"), kept ? 1 : 0) << frame;
+    EXPECT_EQ(r.report.regions, kept ? 1 : 0) << frame;
+    EXPECT_DOUBLE_EQ(marked_fraction(r.dynamic, person), kept ? 1.0 : 0.0) << frame;
+    EXPECT_EQ(marked_fraction(r.dynamic, car), 0.0) << frame;
+  }
+  // Proven again, then a gap: the memory is of frame 11, not of frame 12.
+  run(across, 10);
+  const Outcome gap = run(along, 12);
+  EXPECT_EQ(value(gap.report, "kept_moving"), 0);
+  EXPECT_EQ(gap.report.regions, 0);
+  // The paper's rule (0) decides every frame afresh.
+  StdynOptions fresh = o;
+  fresh.keep_moving_frames = 0;
+  StdynStage afresh(fresh);
+  for (Pair* p : {&across, &along}) {
+    p->prev->id = p == &across ? 20 : 21;
+    p->cur->id = p->prev->id + 1;
+    Context ctx = context(Sensor::kMono, p->calib, *p->cur, p->prev);
+    ctx.dynamic = cv::Mat(kH, kW, CV_8UC1, cv::Scalar(0));
+    ctx.tracked = &p->tracked;
+    StageReport rep;
+    afresh.process(ctx, rep);
+    EXPECT_EQ(rep.regions, p == &across ? 1 : 0);
+  }
+}
+
 TEST(StdynStage, NoPreviousFrameMarksNothing) {
   Pair p = make_frames(street(cv::Vec3d(0, 0.08, 0)));
   Context ctx = context(Sensor::kStereo, p.calib, *p.cur, nullptr);
@@ -513,7 +571,8 @@ TEST(StdynStage, UndistortsBeforeTheEpipolarCheck) {
 TEST(StdynStage, ReadsOptionsKeepingDefaultsForMissingKeys) {
   cv::FileStorage fs(
       "%YAML:1.0\nstdyn:\n  epipolar_threshold_px: 1.5\n  min_dynamic_points: 3\n"
-      "  f_exclude_candidates: true\n  movable_labels: [15, 7]\n  f_method: usac\n",
+      "  f_exclude_candidates: true\n  movable_labels: [15, 7]\n  f_method: usac\n"
+      "  keep_moving_frames: 4\n",
       cv::FileStorage::READ | cv::FileStorage::MEMORY);
   StdynOptions o;
   o.read(fs["stdyn"]);
@@ -522,7 +581,10 @@ TEST(StdynStage, ReadsOptionsKeepingDefaultsForMissingKeys) {
   EXPECT_TRUE(o.f_exclude_candidates);
   EXPECT_EQ(o.movable_labels, (std::vector<int>{15, 7}));
   EXPECT_EQ(o.f_method, "usac");
+  EXPECT_EQ(o.keep_moving_frames, 4);
   const StdynOptions d;
+  EXPECT_EQ(d.keep_moving_frames, 0);  // the papers decide every frame afresh
+  EXPECT_EQ(o.keep_moving_overlap, d.keep_moving_overlap);
   EXPECT_EQ(o.f_ransac_threshold_px, d.f_ransac_threshold_px);
   EXPECT_EQ(o.f_ransac_confidence, d.f_ransac_confidence);
   EXPECT_EQ(o.edge_margin_px, d.edge_margin_px);
