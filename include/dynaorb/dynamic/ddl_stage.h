@@ -231,8 +231,8 @@ class DdlStage : public Stage {
   // pose_refined (refine_points, refine_inliers, refine_close,
   // refine_close_given_pose, pose_correction_m / _deg), keyframes_used,
   // projected, parallax_rejected, no_depth, dynamic (vanished of them: seen
-  // behind; sliding: on a surface sliding along itself), static, seen_static_rejected, vanished_rejected, tau_alpha_deg,
-  // tau_d_m, region_pixels, semantic_pixels, combined_pixels, and on
+  // behind; sliding: on a surface sliding along itself), static,
+  // seen_static_rejected, vanished_rejected, tau_alpha_deg, tau_d_m, region_pixels, semantic_pixels, combined_pixels, and on
   // degenerate input one of skipped_no_depth, skipped_bad_input,
   // skipped_no_pose, skipped_no_keyframes. Wall time of its parts (ms):
   // refine_ms, check_ms (the projection test), grow_ms (region growing),

@@ -126,6 +126,13 @@ Context make_context(Sequence& s) {
                  nullptr,       nullptr, s.T_cw_current,    &s.keyframes, {}};
 }
 
+// A fresh stage with `options` on the sequence's current frame.
+Outcome evaluate_with(Sequence& s, const DdlOptions& options) {
+  Context ctx = make_context(s);
+  DdlStage stage(options);
+  return evaluate(ctx, stage, s.current.mover);
+}
+
 TEST(DdlStage, CrossingBoxIsFoundStaticRoomIsNot) {
   Sequence s = crossing_box();
   Context ctx = make_context(s);
@@ -242,12 +249,8 @@ TEST(DdlStage, SideOfAVehicleBesideTheCameraNeedsSlidingSurfaces) {
   };
   DdlOptions sliding;
   sliding.seed_sliding_surfaces = true;
-  Context ctx = make_context(s);
-  DdlStage stage(sliding);
-  const Outcome on = evaluate(ctx, stage, s.current.mover);
-  Context ctx_off = make_context(s);
-  DdlStage printed;
-  const Outcome off = evaluate(ctx_off, printed, s.current.mover);
+  const Outcome on = evaluate_with(s, sliding);
+  const Outcome off = evaluate_with(s, DdlOptions());
   std::printf("vehicle side: %d / %d dynamic points with / without sliding surfaces (%g sliding), "
               "marked %.3f / %.3f, static marked %.4f / %.4f\n",
               on_vehicle(on.report), on_vehicle(off.report), on.report.values.at("sliding"), on.mover_coverage,
@@ -275,15 +278,10 @@ TEST(DdlStage, ParallaxOcclusionOfAStaticRoomIsNotMotion) {
     EXPECT_LT(o.static_marked, 0.002);
     EXPECT_GT(o.report.values.at("seen_static_rejected"), 0);
   }
-  {
-    // Nor does it slide: the sliding-surface seeds find nothing here.
-    Context ctx = make_context(s);
-    DdlOptions sliding;
-    sliding.seed_sliding_surfaces = true;
-    DdlStage stage(sliding);
-    const Outcome o = evaluate(ctx, stage, s.current.mover);
-    EXPECT_LT(o.static_marked, 0.002);
-  }
+  // Nor does it slide: the sliding-surface seeds find nothing here.
+  DdlOptions sliding;
+  sliding.seed_sliding_surfaces = true;
+  EXPECT_LT(evaluate_with(s, sliding).static_marked, 0.002);
   {
     Context ctx = make_context(s);
     DdlOptions algorithm1;
