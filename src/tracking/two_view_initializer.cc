@@ -38,6 +38,24 @@ TwoViewResult fail(TwoViewResult r, const std::string& reason) {
   return r;
 }
 
+// The motion and points from the model r.used_homography names (H or F, with its
+// score): its decomposition's hypotheses, the one with a clear lead taken.
+void reconstruct(TwoViewResult& r, const Eigen::Matrix3d& K, const Eigen::Matrix3d& H, const Eigen::Matrix3d& F,
+                 const two_view::Correspondences& c, const two_view::ModelScore& model, const TwoViewOptions& o) {
+  std::vector<two_view::Motion> hypotheses;
+  if (r.used_homography) {
+    hypotheses = two_view::decompose_homography(H, K);
+    if (hypotheses.empty()) {
+      r = fail(r, "homography: singular values nearly equal, no translation (not enough parallax)");
+      return;
+    }
+  } else {
+    hypotheses = two_view::decompose_essential(K.transpose() * F * K);
+  }
+  two_view::select_motion(hypotheses, K, c, model, o, r);
+  if (!r.ok) r.reason = (r.used_homography ? "homography: " : "fundamental: ") + r.reason;
+}
+
 }  // namespace
 
 TwoViewResult TwoViewInitializer::initialize(const Eigen::Matrix3d& K,
@@ -109,17 +127,24 @@ TwoViewResult TwoViewInitializer::initialize(const Eigen::Matrix3d& K,
     model = r.used_homography ? two_view::refine_homography(c, model, o, H)
                               : two_view::refine_fundamental(c, model, o, F);
   r.n_inliers = model.n_inliers;
-  std::vector<two_view::Motion> hypotheses;
-  if (r.used_homography) {
-    hypotheses = two_view::decompose_homography(H, K);
-    if (hypotheses.empty())
-      return fail(r, "homography: singular values nearly equal, no translation (not enough "
-                     "parallax)");
-  } else {
-    hypotheses = two_view::decompose_essential(K.transpose() * F * K);
+  reconstruct(r, K, H, F, c, model, o);
+  if (r.ok || !o.try_other_model) return r;
+  // Ours: the model R_H did not pick, when the picked one cannot reconstruct.
+  TwoViewResult other = r;
+  other.ok = false;
+  other.reason.clear();
+  other.used_homography = !r.used_homography;
+  two_view::ModelScore other_model = other.used_homography ? sh : sf;
+  if (o.refine_with_inliers)
+    other_model = other.used_homography ? two_view::refine_homography(c, other_model, o, H)
+                                        : two_view::refine_fundamental(c, other_model, o, F);
+  other.n_inliers = other_model.n_inliers;
+  reconstruct(other, K, H, F, c, other_model, o);
+  if (other.ok) {
+    other.other_model_used = true;
+    return other;
   }
-  two_view::select_motion(hypotheses, K, c, model, o, r);
-  if (!r.ok) r.reason = (r.used_homography ? "homography: " : "fundamental: ") + r.reason;
+  r.reason += "; then " + other.reason;
   return r;
 }
 

@@ -195,6 +195,56 @@ TEST(TwoViewInitializer, PlanarAmbiguityIsRejected) {
   }
 }
 
+// A room whose movers were masked: mostly its back wall (a plane), a few points off it,
+// a short baseline. R_H picks H, whose two physical solutions tie (no clear winner); F,
+// tried next (try_other_model, ours), reconstructs. ORB-SLAM2's rule alone waits.
+TEST(TwoViewInitializer, TheOtherModelIsTriedWhenThePickedOneCannotReconstruct) {
+  int fell_back = 0;
+  for (unsigned seed : {41u, 42u, 43u}) {
+    const Eigen::Vector3d t(-0.3, 0.1, 0.15);
+    Scene s = make_scene(seed, 300, true, kPlanarR, t, 0.5);
+    const Scene off = make_scene(seed + 100, 60, false, kPlanarR, t, 0.5);
+    const int n = static_cast<int>(s.X.size());
+    std::vector<Eigen::Vector2d> cur(s.cur.rbegin(), s.cur.rend());  // back to match order
+    const std::vector<Eigen::Vector2d> off_cur(off.cur.rbegin(), off.cur.rend());
+    for (size_t i = 0; i < off.X.size(); ++i) {
+      s.X.push_back(off.X[i]);
+      s.ref.push_back(off.ref[i]);
+      cur.push_back(off_cur[i]);
+      s.outlier.push_back(false);
+    }
+    s.cur.assign(cur.rbegin(), cur.rend());
+    s.matches.clear();
+    const int all = static_cast<int>(s.X.size());
+    for (int i = 0; i < all; ++i) s.matches.emplace_back(i, all - 1 - i);
+    ASSERT_GT(all, n);
+    TwoViewOptions paper;
+    paper.try_other_model = false;
+    const TwoViewResult alone = run(s, paper);
+    const TwoViewResult r = run(s);
+    std::printf("seed %u: R_H %.2f, picked alone: %s (%s); with the other model: %s, %s%s\n", seed,
+                alone.ratio_h, alone.used_homography ? "H" : "F", alone.ok ? "ok" : alone.reason.c_str(),
+                r.ok ? "ok" : r.reason.c_str(), r.used_homography ? "H" : "F", r.other_model_used ? " (other)" : "");
+    // 300 points on the wall, 60 off it: R_H 0.43.
+    EXPECT_FALSE(alone.ok);
+    EXPECT_TRUE(alone.used_homography);
+    EXPECT_GT(alone.ratio_h, paper.ratio_h);
+    EXPECT_NE(alone.reason.find("no clear winner"), std::string::npos) << alone.reason;
+    ASSERT_TRUE(r.ok) << r.reason;
+    ++fell_back;
+    EXPECT_TRUE(r.other_model_used);
+    EXPECT_FALSE(r.used_homography);
+    EXPECT_LT(rotation_error_deg(r.R_cr, kPlanarR), 0.5);
+    EXPECT_LT(direction_error_deg(r.t_cr, t), 3.0);
+    EXPECT_GE(count(r.triangulated), 50);
+  }
+  EXPECT_EQ(fell_back, 3);
+  // A general scene never needs it: F is picked and reconstructs.
+  const TwoViewResult general = run(make_scene(44, 300, false, kGeneralR, kGeneralT, 0.5));
+  EXPECT_TRUE(general.ok);
+  EXPECT_FALSE(general.other_model_used);
+}
+
 TEST(TwoViewInitializer, CheckMotionRejectsInconsistentMatches) {
   // All matches offered as inliers under the true motion: the gross outliers must fail the
   // depth / reprojection tests, the others pass.
