@@ -38,12 +38,20 @@ TwoViewResult fail(TwoViewResult r, const std::string& reason) {
   return r;
 }
 
-// The motion and points from the model r.used_homography names (H or F, with its
-// score): its decomposition's hypotheses, the one with a clear lead taken.
-void reconstruct(TwoViewResult& r, const Eigen::Matrix3d& K, const Eigen::Matrix3d& H, const Eigen::Matrix3d& F,
-                 const two_view::Correspondences& c, const two_view::ModelScore& model, const TwoViewOptions& o) {
+// r with the motion and points of one model (H when `homography`, else F, with its
+// RANSAC score): refined on its inliers (refine_with_inliers), decomposed, the
+// hypothesis with a clear lead taken; r.ok false with the reason otherwise.
+void solve_with(TwoViewResult& r, bool homography, two_view::ModelScore model, Eigen::Matrix3d& H,
+                Eigen::Matrix3d& F, const Eigen::Matrix3d& K, const two_view::Correspondences& c,
+                const TwoViewOptions& o) {
+  r.ok = false;
+  r.reason.clear();
+  r.used_homography = homography;
+  if (o.refine_with_inliers)
+    model = homography ? two_view::refine_homography(c, model, o, H) : two_view::refine_fundamental(c, model, o, F);
+  r.n_inliers = model.n_inliers;
   std::vector<two_view::Motion> hypotheses;
-  if (r.used_homography) {
+  if (homography) {
     hypotheses = two_view::decompose_homography(H, K);
     if (hypotheses.empty()) {
       r = fail(r, "homography: singular values nearly equal, no translation (not enough parallax)");
@@ -53,7 +61,7 @@ void reconstruct(TwoViewResult& r, const Eigen::Matrix3d& K, const Eigen::Matrix
     hypotheses = two_view::decompose_essential(K.transpose() * F * K);
   }
   two_view::select_motion(hypotheses, K, c, model, o, r);
-  if (!r.ok) r.reason = (r.used_homography ? "homography: " : "fundamental: ") + r.reason;
+  if (!r.ok) r.reason = (homography ? "homography: " : "fundamental: ") + r.reason;
 }
 
 }  // namespace
@@ -121,25 +129,12 @@ TwoViewResult TwoViewInitializer::initialize(const Eigen::Matrix3d& K,
   r.ratio_h = sh.score / (sh.score + sf.score);
 
   // ---- model selection and reconstruction
-  r.used_homography = r.ratio_h > o.ratio_h;
-  two_view::ModelScore model = r.used_homography ? sh : sf;
-  if (o.refine_with_inliers)
-    model = r.used_homography ? two_view::refine_homography(c, model, o, H)
-                              : two_view::refine_fundamental(c, model, o, F);
-  r.n_inliers = model.n_inliers;
-  reconstruct(r, K, H, F, c, model, o);
+  const bool pick_h = r.ratio_h > o.ratio_h;
+  solve_with(r, pick_h, pick_h ? sh : sf, H, F, K, c, o);
   if (r.ok || !o.try_other_model) return r;
   // Ours: the model R_H did not pick, when the picked one cannot reconstruct.
   TwoViewResult other = r;
-  other.ok = false;
-  other.reason.clear();
-  other.used_homography = !r.used_homography;
-  two_view::ModelScore other_model = other.used_homography ? sh : sf;
-  if (o.refine_with_inliers)
-    other_model = other.used_homography ? two_view::refine_homography(c, other_model, o, H)
-                                        : two_view::refine_fundamental(c, other_model, o, F);
-  other.n_inliers = other_model.n_inliers;
-  reconstruct(other, K, H, F, c, other_model, o);
+  solve_with(other, !pick_h, pick_h ? sf : sh, H, F, K, c, o);
   if (other.ok) {
     other.other_model_used = true;
     return other;
