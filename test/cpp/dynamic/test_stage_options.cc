@@ -87,6 +87,9 @@ TEST(StageOptions, StdynOutOfRangeIsRefusedByName) {
           {"min_dynamic_points", [](StdynOptions& o) { o.min_dynamic_points = 0; }},
           {"min_dynamic_ratio", [](StdynOptions& o) { o.min_dynamic_ratio = 1.2; }},
           {"object_search_radius_px", [](StdynOptions& o) { o.object_search_radius_px = -15; }},
+          {"keep_moving_frames", [](StdynOptions& o) { o.keep_moving_frames = -1; }},
+          {"keep_moving_overlap", [](StdynOptions& o) { o.keep_moving_overlap = kNan; }},
+          {"keep_moving_overlap", [](StdynOptions& o) { o.keep_moving_overlap = 1.5; }},
           {"no_labels_point_radius_px", [](StdynOptions& o) { o.no_labels_point_radius_px = 0; }},
           {"movable_labels", [](StdynOptions& o) { o.movable_labels = {15, 300}; }},
       });
