@@ -311,6 +311,12 @@ void DdlStage::process(Context& ctx, StageReport& report) {
     }
     return (*keyframe_evidence)(x, y);
   };
+  // Motion evidence of its own at (x, y) (KeyframeEvidence::moving_area), the
+  // evidence built on first use.
+  const auto moving_at = [&](int x, int y) {
+    evidence(x, y);
+    return keyframe_evidence->moving_area(x, y);
+  };
   t_part = Clock::now();
 
   const double cos_tau_alpha = std::cos(o_.parallax_threshold_deg * M_PI / 180.0);
@@ -365,7 +371,7 @@ void DdlStage::process(Context& ctx, StageReport& report) {
       // sliding along itself) passes both depth tests; with
       // seed_sliding_surfaces it is dynamic too.
       const bool sliding = !covered && !gone && o_.seed_sliding_surfaces && o_.confirm_with_keyframes &&
-                           (evidence(q.x, q.y), keyframe_evidence->moving_area(q.x, q.y));
+                           moving_at(q.x, q.y);
       if (sliding) ++sliding_points;
       if (covered || gone || sliding) {
         if (gone) ++vanished;
@@ -393,10 +399,7 @@ void DdlStage::process(Context& ctx, StageReport& report) {
   t_part = Clock::now();
   cv::Mat region;
   if (o_.confirm_with_keyframes) {
-    region = grow_regions(cur.depth, seeds, o_, [&](int x, int y) {
-      evidence(x, y);  // builds the evidence on first use
-      return !keyframe_evidence->moving_area(x, y);
-    });
+    region = grow_regions(cur.depth, seeds, o_, [&](int x, int y) { return !moving_at(x, y); });
   } else {
     region = grow_regions(cur.depth, seeds, o_, [](int, int) { return false; });
   }
