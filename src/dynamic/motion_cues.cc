@@ -434,15 +434,23 @@ void detect_corners_ahead(const FrameData& frame, const map::Calibration& calib,
   const cv::Mat right = wants_stereo_depth(frame, calib, sensor) ? frame.right : cv::Mat();
   const double bf = calib.bf;
   cache.next_corners_image = grey;
+  // The frame's own track_points call (when it ran first) left its LK
+  // pyramid in the cache: the stereo depths start from it instead of
+  // building it again. Only read from here on, by both threads.
+  std::vector<cv::Mat> left_pyramid;
+  if (!right.empty() && cache.image.data == grey.data && cache.image.size() == grey.size() &&
+      cache.window == lk_window(o) && cache.levels == lk_levels(o))
+    left_pyramid = cache.pyramid;
   // The job owns copies of what it reads (cv::Mat headers share the buffers).
-  auto task = std::make_shared<std::packaged_task<AheadCorners()>>([grey, candidates, right, bf, o] {
+  auto task = std::make_shared<std::packaged_task<AheadCorners()>>([grey, candidates, right, left_pyramid, bf, o] {
     AheadCorners a;
     auto t0 = Clock::now();
     a.corners = detect_corners(grey, o, candidates);
     a.corners_ms = ms_since(t0);
     if (!right.empty() && !a.corners.empty()) {
       t0 = Clock::now();
-      a.right_depth = stereo_depths(lk_pyramid(grey, o), lk_pyramid(right, o), a.corners, bf, o);
+      a.right_depth = stereo_depths(left_pyramid.empty() ? lk_pyramid(grey, o) : left_pyramid, lk_pyramid(right, o),
+                                    a.corners, bf, o);
       a.stereo_ms = ms_since(t0);
     }
     return a;

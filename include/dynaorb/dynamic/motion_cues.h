@@ -180,7 +180,9 @@ std::vector<float> stereo_depths(const std::vector<cv::Mat>& left_pyramid, const
 // frame's): the detection depends on that frame alone, so it overlaps the
 // rest of this frame's work. For stereo without a depth image (frame.right
 // set, calib.bf > 0) it also finds the corners' depth in frame.right, which
-// track_points would otherwise compute on the calling thread. Same corners
+// track_points would otherwise compute on the calling thread, from the LK
+// pyramid of frame.grey the cache holds when that frame's own track_points
+// call came first (else built there). Same corners
 // and depths as computing them then (LK tracks each point on its own). Call
 // it once per frame, before or after that frame's track_points: the corners
 // started at the last call move to the current slot, those started now take
