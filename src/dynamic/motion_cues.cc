@@ -196,6 +196,13 @@ std::vector<cv::Mat> lk_pyramid(const cv::Mat& image, const MotionCueOptions& o)
   return pyramid;
 }
 
+// Whether the cache holds the LK pyramid of `image` (the same buffer) built
+// with o's window and levels.
+bool holds_pyramid_of(const MotionCueCache& cache, const cv::Mat& image, const MotionCueOptions& o) {
+  return !cache.image.empty() && cache.image.data == image.data && cache.image.size() == image.size() &&
+         cache.window == lk_window(o) && cache.levels == lk_levels(o);
+}
+
 // LK from `a` into `b` and back (pyramids of lk_pyramid); a point is kept
 // only when the backward track returns to within fb_max px of where it
 // started (fb_max <= 0: not tracked back, kept when found). keep (optional):
@@ -438,9 +445,7 @@ void detect_corners_ahead(const FrameData& frame, const map::Calibration& calib,
   // pyramid in the cache: the stereo depths start from it instead of
   // building it again. Only read from here on, by both threads.
   std::vector<cv::Mat> left_pyramid;
-  if (!right.empty() && cache.image.data == grey.data && cache.image.size() == grey.size() &&
-      cache.window == lk_window(o) && cache.levels == lk_levels(o))
-    left_pyramid = cache.pyramid;
+  if (!right.empty() && holds_pyramid_of(cache, grey, o)) left_pyramid = cache.pyramid;
   // The job owns copies of what it reads (cv::Mat headers share the buffers).
   auto task = std::make_shared<std::packaged_task<AheadCorners()>>([grey, candidates, right, left_pyramid, bf, o] {
     AheadCorners a;
@@ -493,10 +498,8 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
     }
 
     t0 = Clock::now();
-    const bool cached = cache && !cache->image.empty() && cache->image.data == prev.grey.data &&
-                        cache->image.size() == size && cache->window == lk_window(o) &&
-                        cache->levels == lk_levels(o);
-    const std::vector<cv::Mat> prev_pyramid = cached ? cache->pyramid : lk_pyramid(prev.grey, o);
+    const std::vector<cv::Mat> prev_pyramid =
+        cache && holds_pyramid_of(*cache, prev.grey, o) ? cache->pyramid : lk_pyramid(prev.grey, o);
     std::vector<cv::Mat> cur_pyramid = lk_pyramid(cur.grey, o);
     if (cache) {
       cache->image = cur.grey;
