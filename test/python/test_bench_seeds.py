@@ -5,6 +5,7 @@ import json
 
 import pytest
 
+from dynaorb.bench import seeds_peer
 from dynaorb.bench.seeds import SeedsOptions, parse_seeds, render, run_seeds, summarize
 
 
@@ -108,3 +109,67 @@ def test_cli_refuses_bad_seed_options_before_running(tmp_path, capsys):
         assert main(["bench", "--suite", "quick", "--realtime", rate, "--out", str(out)]) == 2, rate
         assert "expected a positive number" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_peer_ratios_are_ours_over_orbslam3_seed_by_seed():
+    static = {0: 0.003, 1: 0.004, 2: 0.002}
+    peer_static = {0: 0.0025, 1: 0.005, 2: 0.002}             # ours / theirs 1.2, 0.8, 1.0
+    full = {0: 0.0033, 1: 0.0044, 2: 0.004}
+    peer_movers = {0: 0.011, 1: 0.43, 2: None}                # 0.3, 0.0102, no ATE (lost)
+    records = [_record("stereo", s, "static", a) for s, a in static.items()]
+    records += [_record("stereo", s, "peer_static", a) for s, a in peer_static.items()]
+    records += [_record("stereo", s, "full", a) for s, a in full.items()]
+    records += [_record("stereo", s, "peer_movers", a) for s, a in peer_movers.items()]
+    records.append(_record("stereo", 0, "full_static", 0.005))  # the filter on the room without movers: 2.0
+    results = {"options": {"seeds": [0, 1, 2], "frames": 60, "width": 640, "height": 480, "sensors": ["stereo"]},
+               "conditions": {"static": {}, "full": {}, "peer_static": {}, "peer_movers": {}, "full_static": {}},
+               "targets": {"full": ["<=", 1.2]}, "records": records, "started": "t0", "finished": "t1"}
+    # The peer's runs are no condition of ours: only full / static is a ratio to static.
+    assert {r["condition"] for r in summarize(results)} == {"full", "full_static"}
+    rows = {r["condition"]: r for r in seeds_peer.summarize(results, ("rgbd", "stereo", "mono"), (0, 1, 2))}
+    assert rows["static"]["median"] == pytest.approx(1.0) and rows["static"]["test_seeds_median"] == pytest.approx(1.0)
+    assert rows["static"]["no_worse"] == 2 and rows["static"]["peer"] == "peer_static"
+    assert rows["full"]["seeds"] == 2 and rows["full"]["test_seeds_median"] is None
+    assert rows["full"]["median"] == pytest.approx((0.3 + 0.0044 / 0.43) / 2) and rows["full"]["no_worse"] == 2
+    assert rows["full_static"]["peer"] == "peer_static" and rows["full_static"]["median"] == pytest.approx(2.0)
+    text = render(results)
+    assert "| stereo | static | peer_static | 3 | 1.00 | 1.00 | 2/3 |" in text
+    assert "| 0 | 3.00 | 3.30 | 2.50 | 11.00 | 5.00 | 1.10 | 1.67 | 60 / 60 / 60 / 60 / 60 of 60 |" in text
+
+
+def test_peer_conditions_run_orbslam3_on_the_same_rooms(tmp_path, monkeypatch, data):
+    """The peer's runs get the room of their condition and land in the records; without pyorbslam3 they are
+    recorded as failed and the sweep goes on."""
+    from dynaorb.bench import suite_runner
+
+    calls = []
+
+    def fake_peer_record(seq, out, python, vocabulary, timeout_s, resume=False, realtime=0.0, fields=None):
+        calls.append((seq.path, out, python, fields))
+        return {"system": "orbslam3", "sensor": seq.sensor, **fields, "ate_rmse": 0.004,
+                "stats": {"frames": 20, "tracked_frames": 19}}
+
+    monkeypatch.setattr(suite_runner, "peer_record", fake_peer_record)
+    monkeypatch.setattr(suite_runner, "keep_record", lambda out, record: record)
+    monkeypatch.setattr(seeds_peer, "setup", lambda conditions, venv, vocabulary, progress:
+                        {"python": "/peer/python", "vocabulary": "voc.txt", "status": {"status": "run"}})
+    opts = SeedsOptions(out=str(tmp_path / "out"), seeds=(7,), sensors=("rgbd",), jobs=1, frames=20, width=320,
+                        height=240, fx=262.5, conditions=("static", "peer_static", "peer_movers"))
+    results = run_seeds(opts, progress=lambda m: None)
+    assert [("_m0_" in path, fields["condition"]) for path, _, python, fields in calls] == \
+        [(True, "peer_static"), (False, "peer_movers")]
+    assert all(python == "/peer/python" and out.name == fields["condition"] for _, out, python, fields in calls)
+    runs = {r["condition"]: r for r in results["records"]}
+    assert runs["peer_movers"]["tracked_frames"] == 19 and results["peer"] == {"status": "run"}
+    assert results["conditions"]["peer_movers"] == {"movers": 3, "system": "orbslam3"}
+    assert "## Against ORB-SLAM3" in (tmp_path / "out" / "seeds.md").read_text()
+
+    calls.clear()
+    monkeypatch.setattr(seeds_peer, "setup", lambda conditions, venv, vocabulary, progress:
+                        {"python": None, "status": {"status": "not run: no libGL"}})
+    opts.out, opts.resume = str(tmp_path / "out2"), False
+    results = run_seeds(opts, progress=lambda m: None)
+    runs = {r["condition"]: r for r in results["records"]}
+    assert not calls and runs["static"].get("ate_rmse")
+    assert runs["peer_static"]["error"] == "ORB-SLAM3 not run: no libGL"
+    assert "- rgbd seed 7 peer_static: ORB-SLAM3 not run: no libGL" in (tmp_path / "out2" / "seeds.md").read_text()

@@ -10,10 +10,16 @@ synchronous mapping (runs repeat exactly):
 
   static  no movers, no filter: the reference;
   full    movers, the `full` preset with the label images;
+  full_static
+          no movers, the `full` preset with the label images: what the
+          filter costs where nothing moves (not run unless asked for);
   masks   movers, the ground-truth dynamic masks kept out of tracking
           (SLAM core I's target: within 1.2x of static);
   off     movers, no filter: the problem (the filter's issue asks `off` to
-          be at least 3x worse).
+          be at least 3x worse);
+  peer_static, peer_movers
+          ORB-SLAM3 on the rooms without and with movers (seeds_peer.py),
+          not run unless asked for.
 
 Each run is a child process (a crash is recorded, the sweep goes on).
 Writes OUT/seeds.json (every run; rewritten after each, so a sweep stopped
@@ -30,6 +36,7 @@ import json
 import pathlib
 import statistics
 
+from dynaorb.bench import seeds_peer
 from dynaorb.bench.suites import SYNTH_FRAMES, Sequence, ensure_rendered, synth_sequence
 
 SENSORS = ("rgbd", "stereo", "mono")
@@ -38,11 +45,14 @@ MOVERS = 3
 CONDITIONS = {
     "static": (0, "off", False, False),
     "full": (MOVERS, "full", True, False),
+    "full_static": (0, "full", True, False),
     "masks": (MOVERS, "off", False, True),
     "off": (MOVERS, "off", False, False),
 }
 # ratio to static each condition is held to: (comparison, bound); static is the reference.
 TARGETS = {"full": ("<=", 1.2), "masks": ("<=", 1.2), "off": (">=", 3.0)}
+FILTERED = ("full", "full_static")  # the conditions --preset runs
+ALL_CONDITIONS = (*CONDITIONS, *seeds_peer.PEER_CONDITIONS)
 TEST_SEEDS = (0, 1, 2)   # the seeds test/python/test_dynamic_e2e.py runs
 RUN_TIMEOUT_S = 600.0
 
@@ -52,8 +62,8 @@ class SeedsOptions:
     out: str = "out/bench_seeds"
     seeds: tuple[int, ...] = tuple(range(12))
     sensors: tuple[str, ...] = SENSORS
-    conditions: tuple[str, ...] = tuple(CONDITIONS)
-    # What the "full" condition runs: a preset name of config/dynamic/ or a preset YAML (a variant under test).
+    conditions: tuple[str, ...] = ("static", "full", "masks", "off")  # full_static and the peer when asked for
+    # What the "full" and "full_static" conditions run: a preset name of config/dynamic/ or a preset YAML (a variant under test).
     preset: str = "full"
     jobs: int = 1                    # runs (and renders) at a time; the runs are synchronous, so repeatable
     frames: int = SYNTH_FRAMES
@@ -64,6 +74,7 @@ class SeedsOptions:
     vocabulary: str = "default"
     timeout_s: float = RUN_TIMEOUT_S
     resume: bool = False             # reuse OUT/runs/... records written for the same spec
+    peer_venv: str | None = None     # pyorbslam3's venv for the peer conditions (default: the peer's cache)
 
     def validate(self) -> None:
         if not self.seeds:
@@ -71,13 +82,13 @@ class SeedsOptions:
         bad = [s for s in self.sensors if s not in SENSORS]
         if bad or not self.sensors:
             raise ValueError(f"sensors: {bad or 'none given'}; choose from {', '.join(SENSORS)}")
-        bad = [c for c in self.conditions if c not in CONDITIONS]
+        bad = [c for c in self.conditions if c not in ALL_CONDITIONS]
         if bad or "static" not in self.conditions:
-            raise ValueError(f"conditions must include static and come from {', '.join(CONDITIONS)}"
+            raise ValueError(f"conditions must include static and come from {', '.join(ALL_CONDITIONS)}"
                              + (f" (unknown: {', '.join(bad)})" if bad else ""))
         if self.jobs < 1:
             raise ValueError(f"jobs must be >= 1, got {self.jobs}")
-        if "full" in self.conditions:
+        if any(c in FILTERED for c in self.conditions):
             from dynaorb.bench.suites import preset_applicability
 
             for sensor in self.sensors:  # an unknown preset (ValueError) or one the sensor cannot run
@@ -111,6 +122,13 @@ def parse_seeds(text: str) -> tuple[int, ...]:
     return tuple(seeds)
 
 
+def movers(condition: str) -> int:
+    """How many movers the condition's room has."""
+    if condition in seeds_peer.PEER_CONDITIONS:
+        return MOVERS if seeds_peer.PEER_CONDITIONS[condition] else 0
+    return CONDITIONS[condition][0]
+
+
 def _sequence(sensor: str, movers: int, seed: int, root: pathlib.Path, opts: SeedsOptions) -> Sequence:
     return synth_sequence(sensor, movers, root, frames=opts.frames, seed=seed, width=opts.width,
                           height=opts.height, fx=opts.fx)
@@ -121,7 +139,7 @@ def _run(seq: Sequence, sensor: str, seed: int, condition: str, out: pathlib.Pat
     from dynaorb.bench.suite_runner import keep_record, reused_record, run_spec
 
     _, preset, labels, masks = CONDITIONS[condition]
-    if condition == "full":
+    if condition in FILTERED:
         preset = opts.preset
     spec = {"kind": seq.kind, "path": seq.path, "sensor": sensor, "out": str(out), "dynamic": preset,
             "vocabulary": opts.vocabulary, "synchronous_mapping": True, "result": str(out / "result.json")}
@@ -153,9 +171,9 @@ def run_seeds(opts: SeedsOptions, progress=print) -> dict:
     out = pathlib.Path(opts.out)
     out.mkdir(parents=True, exist_ok=True)
     root = pathlib.Path(opts.synth_root) if opts.synth_root else out / "synth"
-    movers = sorted({CONDITIONS[c][0] for c in opts.conditions})
+    rooms = sorted({movers(c) for c in opts.conditions})
     sequences = {(sensor, m, seed): _sequence(sensor, m, seed, root, opts)
-                 for sensor in opts.sensors for seed in opts.seeds for m in movers}
+                 for sensor in opts.sensors for seed in opts.seeds for m in rooms}
     missing = [s for s in sequences.values() if not (pathlib.Path(s.synthetic["out"]) / "synth.json").is_file()]
     if missing:
         progress(f"rendering {len(missing)} synthetic sequences (cached in {root})")
@@ -164,17 +182,23 @@ def run_seeds(opts: SeedsOptions, progress=print) -> dict:
     results = {"suite": "seeds", "started": datetime.datetime.now().isoformat(timespec="seconds"),
                "options": {k: v for k, v in dataclasses.asdict(opts).items() if k not in ("out", "resume")},
                "conditions": {c: dict(zip(("movers", "preset", "labels", "masks"),
-                                          (CONDITIONS[c][0], opts.preset if c == "full" else CONDITIONS[c][1],
+                                          (CONDITIONS[c][0], opts.preset if c in FILTERED else CONDITIONS[c][1],
                                            *CONDITIONS[c][2:])))
+                              if c in CONDITIONS else {"movers": movers(c), "system": "orbslam3"}
                               for c in opts.conditions},
                "targets": {c: TARGETS[c] for c in opts.conditions if c in TARGETS},
                "records": [], "finished": None}
+    peer = seeds_peer.setup(opts.conditions, opts.peer_venv, opts.vocabulary, progress)
+    results["peer"] = peer["status"] if peer else None
     jobs = [(sensor, seed, c) for sensor in opts.sensors for seed in opts.seeds for c in opts.conditions]
 
     def one(job):
         sensor, seed, condition = job
-        seq = sequences[(sensor, CONDITIONS[condition][0], seed)]
-        return _run(seq, sensor, seed, condition, out / "runs" / sensor / f"s{seed}" / condition, opts)
+        seq = sequences[(sensor, movers(condition), seed)]
+        run_out = out / "runs" / sensor / f"s{seed}" / condition
+        if condition in seeds_peer.PEER_CONDITIONS:
+            return seeds_peer.run(seq, sensor, seed, condition, run_out, peer, opts.timeout_s, opts.resume)
+        return _run(seq, sensor, seed, condition, run_out, opts)
 
     with concurrent.futures.ThreadPoolExecutor(max_workers=opts.jobs) as pool:
         for i, record in enumerate(pool.map(one, jobs), 1):
@@ -207,7 +231,7 @@ def ratios(results: dict) -> dict:
     out: dict = {}
     for (sensor, seed, condition), value in ate.items():
         ref = ate.get((sensor, seed, "static"))
-        if condition == "static" or value is None or not ref:
+        if condition == "static" or condition in seeds_peer.PEER_CONDITIONS or value is None or not ref:
             continue
         out.setdefault((sensor, condition), {})[seed] = value / ref
     return out
@@ -243,14 +267,19 @@ def render(results: dict) -> str:
 
     opts = results["options"]
     n = len(opts["seeds"])
+    preset = next((results["conditions"][c].get("preset") for c in FILTERED if c in results["conditions"]), None)
+    preset = preset or "full"
     lines = [f"# Benchmark: seeds ({n} synthetic seed{'s' if n != 1 else ''} per sensor)", "",
              f"Started {results['started']}, finished {results['finished']}. Seeds "
              f"{', '.join(map(str, opts['seeds']))}; {opts['frames']} frames at {opts['width']}x{opts['height']}, "
              f"{MOVERS} movers against none; one run per condition, synchronous mapping (repeatable).", "",
              "Conditions: static = no movers, no filter (the reference); full = movers, the "
-             f"`{(results['conditions'].get('full') or {}).get('preset', 'full')}` preset with the "
-             "label images; masks = movers, the ground-truth dynamic masks kept out of tracking; off = movers, "
-             "no filter. Ratios are ATE RMSE over the static run's on the same seed (each over the frames it "
+             f"`{preset}` preset with the label images; full_static = no movers, the same preset; masks = movers, "
+             "the ground-truth dynamic masks kept out of tracking; off = movers, "
+             "no filter" + ("; peer_static / peer_movers = ORB-SLAM3 on the room without / with the movers "
+                            "(its own mapping threads)" if any(c in seeds_peer.PEER_CONDITIONS for c in
+                                                                results["conditions"]) else "")
+             + ". Ratios are ATE RMSE over the static run's on the same seed (each over the frames it "
              "tracked; monocular: Sim3 alignment); the seeds 0-2 median is what the end-to-end tests assert.", "", "## Summary", ""]
     rows = []
     for s in results.get("summary") or summarize(results):
@@ -266,8 +295,8 @@ def render(results: dict) -> str:
     per = ratios(results)
     for sensor in [s for s in SENSORS if s in opts["sensors"]]:
         lines += ["", f"## {sensor}", ""]
-        header = ["seed"] + [f"{c} [mm]" for c in conditions] + [f"{c} / static" for c in conditions
-                                                                 if c != "static"]
+        ours = [c for c in conditions if c != "static" and c in CONDITIONS]
+        header = ["seed"] + [f"{c} [mm]" for c in conditions] + [f"{c} / static" for c in ours]
         header.append(f"frames tracked ({' / '.join(conditions)})")
         rows = []
         for seed in opts["seeds"]:
@@ -275,16 +304,16 @@ def render(results: dict) -> str:
             for c in conditions:
                 r = by_run.get((sensor, seed, c)) or {}
                 row.append("failed" if r.get("error") else _mm(r.get("ate_rmse")))
-            for c in conditions:
-                if c != "static":
-                    v = per.get((sensor, c), {}).get(seed)
-                    row.append("n/a" if v is None else f"{v:.2f}")
+            for c in ours:
+                v = per.get((sensor, c), {}).get(seed)
+                row.append("n/a" if v is None else f"{v:.2f}")
             runs = [by_run.get((sensor, seed, c)) or {} for c in conditions]
             frames = next((r["frames"] for r in runs if r.get("frames")), None)
             row.append(" / ".join("-" if r.get("tracked_frames") is None else str(r["tracked_frames"]) for r in runs)
                        + (f" of {frames}" if frames else ""))
             rows.append(row)
         lines += markdown_table(header, rows)
+    lines += seeds_peer.render(results, SENSORS, TEST_SEEDS)
     failed = [r for r in results["records"] if r.get("error")]
     if failed:
         lines += ["", "## Failed runs", ""]

@@ -171,9 +171,15 @@ def _metrics(stats: dict) -> dict:
 def _peer_record(seq: Sequence, run: int, root: pathlib.Path, python, vocabulary, timeout_s: float,
                  resume: bool = False, realtime: float = 0.0) -> dict:
     """One run of the peer on seq (its record, also written to its run folder)."""
+    return peer_record(seq, root / "runs" / _slug(f"{seq.key}:orbslam3") / str(run), python, vocabulary, timeout_s,
+                       resume, realtime, {"run": run})
+
+
+def peer_record(seq: Sequence, out: pathlib.Path, python, vocabulary, timeout_s: float, resume: bool = False,
+                realtime: float = 0.0, fields: dict | None = None) -> dict:
+    """One run of the peer on seq in the folder out (its record, with fields, also written there)."""
     from dynaorb.peer import orbslam3
 
-    out = root / "runs" / _slug(f"{seq.key}:orbslam3") / str(run)
     spec = {"kind": seq.kind, "path": seq.path, "sensor": seq.sensor, "vocabulary": str(vocabulary)}
     if realtime:
         spec["realtime"] = realtime
@@ -187,7 +193,7 @@ def _peer_record(seq: Sequence, run: int, root: pathlib.Path, python, vocabulary
     except Exception as exc:  # e.g. the sequence cannot be read for this sensor: recorded, the bench goes on
         stats = {"error": f"{type(exc).__name__}: {exc}"}
     record = {"system": "orbslam3", "case": f"{seq.key}:orbslam3", "sequence": seq.name, "sensor": seq.sensor,
-              "preset": "off", "run": run, "out": str(out), "peak_rss_mb": stats.get("peak_rss_mb"),
+              "preset": "off", **(fields or {}), "out": str(out), "peak_rss_mb": stats.get("peak_rss_mb"),
               "process_wall_s": stats.get("wall_s")}
     if "error" in stats:
         record["error"] = stats["error"]
@@ -282,15 +288,19 @@ def _save(out: pathlib.Path, results: dict) -> None:
 
 
 def _peer_setup(opts: BenchOptions, progress) -> dict:
-    """The peer's venv and vocabulary, made before the first run ({"python": None} when it is not run),
+    if not opts.peer:
+        return {"python": None, "status": {"status": "skipped (--no-peer)"}}
+    return peer_setup(opts.peer_venv, opts.vocabulary, progress)
+
+
+def peer_setup(venv: str | None, vocabulary_spec: str, progress) -> dict:
+    """The peer's venv and vocabulary, made before the first run ({"python": None} when it cannot run),
     and its status for results.json."""
     from dynaorb.peer import orbslam3
 
-    if not opts.peer:
-        return {"python": None, "status": {"status": "skipped (--no-peer)"}}
     try:
-        python = orbslam3.ensure_venv(pathlib.Path(opts.peer_venv) if opts.peer_venv else None, log=progress)
-        vocabulary = orbslam3.vocabulary_text(opts.vocabulary)
+        python = orbslam3.ensure_venv(pathlib.Path(venv) if venv else None, log=progress)
+        vocabulary = orbslam3.vocabulary_text(vocabulary_spec)
     except orbslam3.PeerUnavailable as exc:
         progress(f"peer not run: {exc}")
         return {"python": None, "status": {"status": f"not run: {exc}"}}

@@ -175,7 +175,7 @@ def cmd_bench(args) -> int:
         try:
             opts = SeedsOptions(out=args.out, seeds=parse_seeds(args.seeds), jobs=args.jobs, resume=args.resume,
                                 sensors=parse_list(args.sensors), conditions=parse_list(args.conditions),
-                                preset=args.preset, synth_root=args.synth_root)
+                                preset=args.preset, synth_root=args.synth_root, peer_venv=args.peer_venv)
             opts.validate()
         except ValueError as exc:
             print(f"dynaorb bench: {exc}", file=sys.stderr)

@@ -160,9 +160,11 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--sensors", default="rgbd,stereo,mono", help="seeds: comma list (default rgbd,stereo,mono)")
     b.add_argument("--conditions", default="static,full,masks,off",
                    help="seeds: comma list of static (no movers), full (movers, --preset with the label images), "
-                        "masks (movers, ground-truth masks), off (movers, no filter); static is required")
+                        "masks (movers, ground-truth masks), off (movers, no filter), full_static (no movers, --preset with "
+                        "the label images), peer_static / peer_movers "
+                        "(ORB-SLAM3 without / with the movers, compared seed by seed); static is required")
     b.add_argument("--preset", default="full",
-                   help="seeds: what the full condition runs, a preset name or YAML file (default full)")
+                   help="seeds: what the full and full_static conditions run, a preset name or YAML file (default full)")
     b.add_argument("--synth-root", metavar="DIR",
                    help="seeds: where the rendered sequences are cached (default OUT/synth)")
     b.add_argument("--jobs", type=int, default=1,
@@ -174,7 +176,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "recording's rate by their stamps (default without the option: as fast as the track "
                         "calls take them; the option alone: 1, as a camera or `rosbag play` delivers them)")
     b.add_argument("--peer-venv", metavar="DIR",
-                   help="virtual environment for pyorbslam3 (default ~/.cache/dynaorb/peer/orbslam3-venv; "
+                   help="quick/full/seeds: virtual environment for pyorbslam3 (default ~/.cache/dynaorb/peer/orbslam3-venv; "
                         "created and installed on first use)")
     b.add_argument("--readme", action="store_true",
                    help="write the README's Results section from OUT/results.json (after the run; "
