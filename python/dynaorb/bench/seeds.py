@@ -225,15 +225,21 @@ def _meets(ratio: float, target: tuple[str, float]) -> bool:
     return ratio <= bound if op == "<=" else ratio >= bound
 
 
-def ratios(results: dict) -> dict:
-    """{(sensor, condition): {seed: ATE / static ATE}} for the seeds where both have an ATE."""
+def _static_reference(condition: str) -> str | None:
+    return None if condition == "static" or condition in seeds_peer.PEER_CONDITIONS else "static"
+
+
+def ratios(results: dict, reference=_static_reference) -> dict:
+    """{(sensor, condition): {seed: ATE / its reference run's ATE}} for the seeds where both have an ATE;
+    reference(condition): the condition of that run on the same sensor and seed (None: no ratio). Default:
+    our conditions over static."""
     ate = {(r["sensor"], r["seed"], r["condition"]): r.get("ate_rmse") for r in results["records"]}
     out: dict = {}
     for (sensor, seed, condition), value in ate.items():
-        ref = ate.get((sensor, seed, "static"))
-        if condition == "static" or condition in seeds_peer.PEER_CONDITIONS or value is None or not ref:
-            continue
-        out.setdefault((sensor, condition), {})[seed] = value / ref
+        of = reference(condition)
+        ref = ate.get((sensor, seed, of)) if of else None
+        if value is not None and ref:
+            out.setdefault((sensor, condition), {})[seed] = value / ref
     return out
 
 

@@ -53,13 +53,9 @@ def run(seq, sensor: str, seed: int, condition: str, out: pathlib.Path, peer: di
 
 def ratios(results: dict) -> dict:
     """{(sensor, our condition): {seed: our ATE / ORB-SLAM3's}} where both have an ATE."""
-    ate = {(r["sensor"], r["seed"], r["condition"]): r.get("ate_rmse") for r in results["records"]}
-    out: dict = {}
-    for (sensor, seed, condition), value in ate.items():
-        theirs = ate.get((sensor, seed, PEER_OF.get(condition, "")))
-        if value is not None and theirs:
-            out.setdefault((sensor, condition), {})[seed] = value / theirs
-    return out
+    from dynaorb.bench import seeds
+
+    return seeds.ratios(results, PEER_OF.get)
 
 
 def summarize(results: dict, sensors, test_seeds) -> list[dict]:
