@@ -146,11 +146,10 @@ def test_peer_conditions_run_orbslam3_on_the_same_rooms(tmp_path, monkeypatch, d
 
     def fake_peer_record(seq, out, python, vocabulary, timeout_s, resume=False, realtime=0.0, fields=None):
         calls.append((seq.path, out, python, fields))
-        return {"system": "orbslam3", "sensor": seq.sensor, **fields, "ate_rmse": 0.004,
-                "stats": {"frames": 20, "tracked_frames": 19}}
+        return {"system": "orbslam3", "sensor": seq.sensor, **fields, "ate_rmse": 0.004, "frames": 20,
+                "tracked_frames": 19, "stats": {"frames": 20, "tracked_frames": 19}}
 
     monkeypatch.setattr(suite_runner, "peer_record", fake_peer_record)
-    monkeypatch.setattr(suite_runner, "keep_record", lambda out, record: record)
     monkeypatch.setattr(seeds_peer, "setup", lambda conditions, venv, vocabulary, progress:
                         {"python": "/peer/python", "vocabulary": "voc.txt", "status": {"status": "run"}})
     opts = SeedsOptions(out=str(tmp_path / "out"), seeds=(7,), sensors=("rgbd",), jobs=1, frames=20, width=320,

@@ -40,15 +40,12 @@ def setup(conditions, venv: str | None, vocabulary: str, progress) -> dict | Non
 def run(seq, sensor: str, seed: int, condition: str, out: pathlib.Path, peer: dict, timeout_s: float,
         resume: bool) -> dict:
     """One peer run (a seeds-suite record: sensor, seed, condition, ate_rmse, frames, tracked_frames)."""
-    from dynaorb.bench.suite_runner import keep_record, peer_record
+    from dynaorb.bench.suite_runner import peer_record
 
     fields = {"seed": seed, "condition": condition}
     if peer.get("python") is None:
         return {"sensor": sensor, **fields, "out": str(out), "error": f"ORB-SLAM3 {peer['status']['status']}"}
-    record = peer_record(seq, out, peer["python"], peer["vocabulary"], timeout_s, resume, fields=fields)
-    stats = record.get("stats") or {}
-    record.update(frames=stats.get("frames"), tracked_frames=stats.get("tracked_frames"))
-    return keep_record(out, record)
+    return peer_record(seq, out, peer["python"], peer["vocabulary"], timeout_s, resume, fields=fields)
 
 
 def ratios(results: dict) -> dict:
