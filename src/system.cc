@@ -202,6 +202,7 @@ struct System::Impl {
     const auto t0 = Clock::now();
     const tracking::TrackOutcome out = tracker->track(frame);
     r.stage_ms["tracking"] = ms_since(t0);
+    r.stage_ms["tracking.map_wait"] = out.map_wait_ms;
     r.method = out.method;
     r.new_keyframe = out.new_keyframe;
     r.map = map_index;

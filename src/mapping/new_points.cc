@@ -32,13 +32,25 @@ bool reprojects(const KeyFrame& kf, int i, const Eigen::Vector3d& X) {
 
 }  // namespace
 
+// The pairs are searched without the map lock, so that tracking is not held
+// up by the descriptor comparisons (most of local mapping's time: 30-55 ms a
+// keyframe on KITTI 06 at 2000 features, while tracking waited up to 45 ms
+// for the map). The search reads the two keyframes' features and bag of
+// words, which never change, and their poses and point slots, which change
+// only on this thread while it works on a keyframe: tracking fills the slots
+// of the keyframe it is making only, and loop correction, global BA and a
+// map reset wait for local mapping to be idle (pause, clear_queue). The
+// neighbours are held, and they and the slots are checked again under the
+// lock all the same.
 void LocalMapper::create_new_points(const std::shared_ptr<KeyFrame>& kf_ptr) {
   const bool mono = sensor_ == Sensor::kMono;
   const match::Matcher matcher;
   std::unique_lock<std::mutex> lk(map_.mutex());
   if (kf_ptr->erased()) return;
   KeyFrame& kf1 = *kf_ptr;
-  const std::vector<KeyFrame*> neighbors = kf1.covisibles(mono ? o_.neighbors_mono : o_.neighbors_stereo);
+  std::vector<std::shared_ptr<KeyFrame>> neighbors;
+  for (KeyFrame* k : kf1.covisibles(mono ? o_.neighbors_mono : o_.neighbors_stereo))
+    if (auto held = map_.keyframe(k->id)) neighbors.push_back(std::move(held));
   const map::Calibration& c = kf1.calib();
   const map::ScalePyramid& s = c.scale;
   const double ratio_factor = 1.5 * s.scale_factor;
@@ -58,11 +70,16 @@ void LocalMapper::create_new_points(const std::shared_ptr<KeyFrame>& kf_ptr) {
       if (median <= 0 || baseline / median < 0.01) continue;
     }
     const bool by_bow = mono ? o_.triangulation_bow_mono : o_.triangulation_bow_stereo;
-    const auto pairs =
-        matcher.search_for_triangulation(kf1, kf2, match::Matcher::fundamental(kf1, kf2), by_bow);
+    const Eigen::Matrix3d F12 = match::Matcher::fundamental(kf1, kf2);
+    lk.unlock();
+    const std::vector<std::pair<int, int>> pairs = matcher.search_for_triangulation(kf1, kf2, F12, by_bow);
+    lk.lock();
+    if (kf1.erased()) break;
+    if (kf2.erased()) continue;
     Eigen::Matrix<double, 3, 4> P2 = kf2.T_cw().matrix().topRows<3>();
     const Eigen::Matrix3d Rwc2 = kf2.T_wc().rotation();
     for (const auto& [i1, i2] : pairs) {
+      if (kf1.point(i1) || kf2.point(i2)) continue;
       const cv::KeyPoint& k1 = kf1.f().keys_un[i1];
       const cv::KeyPoint& k2 = kf2.f().keys_un[i2];
       const bool stereo1 = kf1.f().u_right[i1] >= 0, stereo2 = kf2.f().u_right[i2] >= 0;
@@ -101,10 +118,6 @@ void LocalMapper::create_new_points(const std::shared_ptr<KeyFrame>& kf_ptr) {
       recent_points_.push_back(p);
       ++created;
     }
-    // Let tracking in between neighbours.
-    lk.unlock();
-    lk.lock();
-    if (kf_ptr->erased()) break;
   }
   std::lock_guard<std::mutex> c_lk(queue_mutex_);
   counters_.points_created += created;

@@ -69,7 +69,9 @@ void Tracker::map_replaced() {
 
 TrackOutcome Tracker::track(Frame& f) {
   TrackOutcome out;
+  const auto wait_start = Clock::now();
   std::lock_guard<std::mutex> lk(map_.mutex());
+  out.map_wait_ms = ms_since(wait_start);
   if (!initialized_) {
     init_status_.clear();
     out.ok = out.initialized = initialize(f);

@@ -55,6 +55,10 @@ def test_corrupt_frame_is_skipped_and_counted(tmp_path, synth_rgbd):
     assert [f["index"] for f in frames] == [0, 1, 2, 4, 5, 6, 7]
     assert collections.Counter(f["state"] for f in frames) == collections.Counter(stats["states"])
     assert [f["track_call_ms"] for f in frames] == stats["track_call_ms"]
+    # The tracking stage's wait for the map lock, per frame and summarised.
+    waits = [f["map_wait_ms"] for f in frames]
+    assert all(w is not None and w >= 0 for w in waits)
+    assert stats["map_wait_ms"]["max"] == max(waits) and stats["map_wait_ms"]["median"] <= max(waits)
     assert all(f["map"] == 0 and not f["map_dropped"] and f["rejected"] is None for f in frames)
     assert sum(f["state"] == "OK" for f in frames) == stats["tracked_frames"]
     assert frames[0]["method"] == "init" and frames[0]["new_keyframe"] and frames[0]["keypoints"] > 0

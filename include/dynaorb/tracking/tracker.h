@@ -191,6 +191,9 @@ struct TrackOutcome {
   // under the map lock (local BA may move the keyframe right after).
   std::shared_ptr<map::KeyFrame> reference;
   Eigen::Isometry3d T_c_ref = Eigen::Isometry3d::Identity();
+  // How long the frame waited for the map lock (held by local mapping, loop
+  // closing or global BA while they change the map).
+  double map_wait_ms = 0;
   double relocalization_ms = -1;  // time spent relocalising this frame; < 0: not tried
   // Lost for too long (reset_after_lost / new_map_after_lost_s): the caller
   // drops the map (and whatever refers to it) and calls reset(); the next

@@ -245,6 +245,13 @@ def _median(values):
     return statistics.median(values) if values else None
 
 
+def _spread(values):
+    """Median, mean and maximum of per-frame values (None without any)."""
+    if not values:
+        return None
+    return {"median": statistics.median(values), "mean": statistics.fmean(values), "max": max(values)}
+
+
 # Per-frame values of work done for the filter on a worker thread, beside the
 # stages (not inside their times): the motion cues' corners of the next
 # frame, detected ahead with their sub-pixel refinement, and their stereo
@@ -426,6 +433,9 @@ def _run(_core, opts: RunOptions, segmenter, semantic, tracker) -> dict:
             "map_dropped": result.map_dropped, "keypoints": result.keypoints,
             "tracked_points": result.tracked_points, "new_keyframe": result.new_keyframe,
             "track_call_ms": track_call_ms[-1],
+            # Part of the tracking stage spent waiting for the map lock (local
+            # mapping, loop closing or global BA changing the map meanwhile).
+            "map_wait_ms": result.stage_ms.get("tracking.map_wait"),
             # Why a frame was not tracked (the initialisation's or tracking's own words).
             "message": None if result.state == "OK" else (result.message or None)})
         per_frame_ms.append(dict(result.stage_ms))
@@ -504,8 +514,10 @@ def _run(_core, opts: RunOptions, segmenter, semantic, tracker) -> dict:
         # benchmark can take the same way for another SLAM system.
         "track_call_ms_median": _median(track_call_ms),
         "track_call_ms": track_call_ms,
+        "map_wait_ms": _spread([f["map_wait_ms"] for f in frame_records if f["map_wait_ms"] is not None]),
         # Per frame read: index, stamp, state, method, rejection, map index (one more
-        # after each map given up), keypoints, tracked points, keyframe, track call ms.
+        # after each map given up), keypoints, tracked points, keyframe, track call ms,
+        # map wait ms.
         "per_frame": frame_records,
         "wall_s": wall,
         "fps": len(per_frame_ms) / wall if wall > 0 else None,
