@@ -78,11 +78,11 @@ struct TrackerOptions {
   // synthetic seeds 0-11 (synchronous; `dynaorb run kitti SEQ --tracker
   // ref_ratio_stereo=R`), mean ATE without movers / with the ground-truth
   // masks: 0.75 3.38 / 3.83 mm, 0.85 2.97 / 3.57, 0.9 2.71 / 3.43, 0.95
-  // 2.67 / 3.30 (the masks / static ratio 1.17 -> 1.19-1.23); KITTI 06 0.9:
-  // 0.0595 -> 0.0382 m with 30 -> 50 keyframes. With asynchronous mapping
-  // (KITTI 06, 3 + 3 interleaved runs) local mapping takes no more
-  // keyframes either way (29) and the ATE is the same (0.037-0.042 m), so
-  // the default stays ORB-SLAM2's.
+  // 2.67 / 3.30 (the masks / static ratio 1.17 -> 1.19-1.23); KITTI 06,
+  // synchronous, 0.9: 0.0595 -> 0.0382 m with 30 -> 50 keyframes. With
+  // asynchronous mapping, unpaced (KITTI 06, 3 + 3 interleaved runs), the
+  // map gets 29 keyframes either way and the ATE is the same (0.037-0.042
+  // against 0.038-0.043 m), so the default stays ORB-SLAM2's.
   double ref_ratio_stereo = 0.75;
   double ref_ratio_mono = 0.9;
   int close_tracked_max = 100;        // "need close points" when fewer tracked close
