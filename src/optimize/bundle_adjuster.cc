@@ -1,7 +1,10 @@
 // Local bundle adjustment, following ORB-SLAM2's LocalBundleAdjustment (Mur-Artal & Tardos,
 // T-RO 2017, Sec. VI-D): keyframe poses (some fixed, the gauge) and points are refined jointly
 // on their reprojection errors (2-D mono, 3-D stereo, information inv_sigma2 * I):
-//   1. iterations_first LM iterations with a Huber kernel (delta^2 = the chi2 threshold);
+//   1. iterations_first LM iterations with a Huber kernel (delta^2 = the chi2 threshold) on
+//      the observations whose point is in front of the camera at the input (ORB-SLAM2's
+//      g2o edges take those behind it into the first pass too, mirrored through the camera
+//      plane; here they would be projected at kMinDepth, see Workspace::in_front);
 //   2. unless aborted, the observations with chi2 > threshold or whose point lies at depth <= 0
 //      are excluded and iterations_second iterations are run on the rest WITHOUT the kernel;
 //   3. the outlier flags are recomputed on the final estimate (chi2 > threshold or depth <= 0).
@@ -10,9 +13,10 @@
 // (update_state_every_iteration) with flags computed on it. A point whose observations are all
 // excluded is simply not in the second problem and keeps its value.
 //
-// Reported costs: initial_cost / final_cost are both 1/2 * sum of Huber(chi2) over ALL valid
-// observations (Ceres' convention, the objective of pass 1) at the input and at the returned
-// estimate, so they are comparable even though pass 2 drops the outliers and the kernel.
+// Reported costs: initial_cost / final_cost are both 1/2 * sum of Huber(chi2) over the valid
+// observations in front of the camera (Ceres' convention, the objective of pass 1) at the
+// input and at the returned estimate, so they are comparable even though pass 2 drops the
+// outliers and the kernel.
 //
 // Structure: the points are eliminated first (Schur). Keyframe poses have one of two layouts,
 // chosen per call so that Ceres' Schur eliminator can use one of its fixed-size kernels
@@ -132,7 +136,8 @@ struct Workspace {
   }
 
   // Outlier flags (chi2 > threshold or depth <= 0; invalid observations are outliers) at the
-  // current estimate; returns the robust cost 1/2 * sum Huber(chi2) over the valid ones.
+  // current estimate; returns the robust cost 1/2 * sum Huber(chi2) over the valid ones in
+  // front of the camera (behind it, a projection at kMinDepth has no meaningful cost).
   double classify(std::vector<bool>* outlier) const {
     outlier->assign(in.observations.size(), true);
     double cost = 0;
@@ -143,9 +148,24 @@ struct Workspace {
       const double chi2 = detail::observation_chi2(in.K, o.obs, Xc);
       const double threshold = o.obs.stereo() ? options.chi2_stereo : options.chi2_mono;
       (*outlier)[i] = !(chi2 <= threshold) || Xc.z() <= 0;  // NaN-safe
-      cost += 0.5 * huber(chi2, threshold);
+      if (Xc.z() > 0) cost += 0.5 * huber(chi2, threshold);
     }
     return cost;
+  }
+
+  // The valid observations whose point lies in front of the camera at the current estimate.
+  // One behind it is an outlier whatever the solver does: projected at kMinDepth its
+  // residual is astronomically large (a point 8 m behind a KITTI keyframe: a Huber cost
+  // of 1.7e9 against about 1700 for the rest of the window), and the first pass moved
+  // that keyframe 2 m to shrink it, which made all its 695 other observations outliers.
+  std::vector<bool> in_front() const {
+    std::vector<bool> include(valid);
+    for (size_t i = 0; i < include.size(); ++i) {
+      if (!include[i]) continue;
+      const BaObservation& o = in.observations[i];
+      include[i] = detail::transform_point(poses[o.keyframe].data(), points[o.point]).z() > 0;
+    }
+    return include;
   }
 
   // The parameter block(s) of one keyframe's 7-double pose, eliminated after the points.
@@ -233,8 +253,8 @@ BaResult bundle_adjust(const BaProblem& problem, const BaOptions& options,
   result.aborted = abort_requested(abort);
   if (!result.aborted) {
     ws.build_costs();
-    // Pass 1: all (valid) observations, Huber.
-    result.aborted = ws.solve(ws.valid, /*robust=*/true, options.iterations_first, abort);
+    // Pass 1: the valid observations whose point is in front of the camera, Huber.
+    result.aborted = ws.solve(ws.in_front(), /*robust=*/true, options.iterations_first, abort);
     if (!result.aborted) result.aborted = abort_requested(abort);
     if (!result.aborted) {
       // Pass 2: inliers of pass 1 only, plain least squares.

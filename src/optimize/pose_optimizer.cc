@@ -15,7 +15,10 @@
 //  - each round continues from the previous round's estimate (ORB-SLAM2 restarts every round
 //    from the frame's initial pose); with 10 LM iterations per round this gives at least the
 //    same result and is never worse when the initial pose is far off;
-//  - an observation whose point lies at depth <= 0 in the camera is also an outlier;
+//  - an observation whose point lies at depth <= 0 in the camera is also an outlier, and
+//    the first round leaves out those at depth <= 0 in the initial pose (ORB-SLAM2's g2o
+//    edges project them mirrored through the camera plane; here they would be projected at
+//    kMinDepth, with a residual that outweighs every other);
 //  - a round with fewer than 3 active observations is not solved: the previous estimate and its
 //    classification are kept.
 //
@@ -90,7 +93,11 @@ PoseOptimizerResult optimize_pose(const Intrinsics& K, const Eigen::Isometry3d& 
   const ceres::Solver::Options solver_options =
       pose_solver_options(std::max(1, options.iterations_per_round));
 
+  // The first round leaves out the points behind the initial pose (outliers whatever the
+  // solver does; projected at kMinDepth their residual would outweigh all the others).
   std::vector<bool> outlier(n, false);
+  for (size_t i = 0; i < n; ++i)
+    outlier[i] = !(detail::transform_point(pose, observations[i].point_world).z() > 0);
   bool classified = false;
   for (int round = 0; round < options.rounds; ++round) {
     const bool robust = robust_in_round(round, options.rounds);

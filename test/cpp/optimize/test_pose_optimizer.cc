@@ -154,6 +154,11 @@ TEST(PoseOptimizer, PointBehindCameraIsFiniteOutlier) {
   EXPECT_FALSE(r.inlier[80]);
   EXPECT_FALSE(r.inlier[81]);
   EXPECT_LT(center_error(r.T_cw, s.T_true), 0.01);
+  // They are left out from the first round on: the answer is that without them.
+  const std::vector<PoseObservation> in_front(s.obs.begin(), s.obs.begin() + 80);
+  const PoseOptimizerResult clean = optimize_pose(s.K, s.T_true, in_front);
+  EXPECT_LT(center_error(r.T_cw, clean.T_cw), 1e-9);
+  EXPECT_LT(rotation_error_deg(r.T_cw, clean.T_cw), 1e-7);
 }
 
 }  // namespace
