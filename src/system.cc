@@ -143,6 +143,8 @@ struct System::Impl {
     settings.validate(sensor);
     options.dynamic.validate(sensor);  // a stage the sensor cannot run: refused now, not at the first frame
     options.tracker.validate();
+    options.mapping.validate();
+    options.loop.validate();
     if (options.vocabulary && options.vocabulary->empty())
       throw InputError("the vocabulary is empty (load or train one, or pass none)");
     if (settings.camera.width > 0 && settings.camera.height > 0)

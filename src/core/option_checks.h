@@ -1,14 +1,15 @@
 #pragma once
-// Range checks for a stage's options: each failure is an InputError naming
-// the preset key, its value and the rule ("Dynamic.dm option
-// 'epipolar_threshold_px' is nan; it must be a finite number > 0").
+// Range checks for a module's options (a dynamic stage's, local mapping's,
+// loop closing's): each failure is an InputError naming the section, the key,
+// its value and the rule ("Dynamic.dm option 'epipolar_threshold_px' is nan;
+// it must be a finite number > 0").
 #include <cmath>
 #include <sstream>
 #include <string>
 
 #include "dynaorb/io/errors.h"
 
-namespace dynaorb::dynamic::detail {
+namespace dynaorb::detail {
 
 class OptionChecks {
  public:
@@ -48,4 +49,4 @@ class OptionChecks {
   std::string section_;
 };
 
-}  // namespace dynaorb::dynamic::detail
+}  // namespace dynaorb::detail

@@ -12,7 +12,7 @@
 #include "ddl_keyframes.h"
 #include "dynaorb/core/stopwatch.h"
 #include "file_node_options.h"
-#include "option_checks.h"
+#include "../core/option_checks.h"
 #include "view_geometry.h"
 
 namespace dynaorb::dynamic {
@@ -52,7 +52,7 @@ void DdlOptions::read(const cv::FileNode& node) {
 }
 
 void DdlOptions::validate() const {
-  const detail::OptionChecks c("Dynamic.ddl");
+  const dynaorb::detail::OptionChecks c("Dynamic.ddl");
   c.at_least("reference_keyframes", reference_keyframes, 1);
   if (!(min_overlap >= 0 && min_overlap <= 1)) c.fail("min_overlap", min_overlap, "in [0, 1] (0: any overlap)");
   c.between("parallax_threshold_deg", parallax_threshold_deg, 0, 180, false);

@@ -11,7 +11,7 @@
 #include "dynaorb/dynamic/candidate_regions.h"
 #include "dynaorb/io/errors.h"
 #include "file_node_options.h"
-#include "option_checks.h"
+#include "../core/option_checks.h"
 
 namespace dynaorb::dynamic {
 
@@ -32,7 +32,7 @@ void DmOptions::read(const cv::FileNode& node) {
 }
 
 void DmOptions::validate() const {
-  const detail::OptionChecks c("Dynamic.dm");
+  const dynaorb::detail::OptionChecks c("Dynamic.dm");
   c.at_least("min_static_points", min_static_points, 1);
   c.non_negative("min_dynamic_offset_px", min_dynamic_offset_px, "eq. 8 alone");
   c.positive("epipolar_threshold_px", epipolar_threshold_px);

@@ -5,7 +5,7 @@
 
 #include "dynaorb/io/errors.h"
 #include "file_node_options.h"
-#include "option_checks.h"
+#include "../core/option_checks.h"
 
 namespace dynaorb::dynamic {
 
@@ -72,7 +72,7 @@ void LiOptions::read(const cv::FileNode& node) {
 }
 
 void LiOptions::validate() const {
-  const detail::OptionChecks c("Dynamic.li");
+  const dynaorb::detail::OptionChecks c("Dynamic.li");
   c.between("sgbm_scale", sgbm_scale, 0, 1, true);
   c.at_least("sgbm_num_disparities", sgbm_num_disparities, 1);
   c.at_least("sgbm_block_size", sgbm_block_size, 1);

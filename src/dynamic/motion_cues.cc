@@ -19,7 +19,7 @@
 #include "dynaorb/dynamic/corner_subpix.h"
 #include "dynaorb/io/errors.h"
 #include "file_node_options.h"
-#include "option_checks.h"
+#include "../core/option_checks.h"
 
 #include "view_geometry.h"
 
@@ -400,7 +400,7 @@ bool wants_stereo_depth(const FrameData& f, const map::Calibration& calib, Senso
 }  // namespace
 
 void MotionCueOptions::validate() const {
-  const detail::OptionChecks c("Dynamic.motion_cues");
+  const dynaorb::detail::OptionChecks c("Dynamic.motion_cues");
   if (detector != "harris" && detector != "fast") c.fail("detector", detector, "harris or fast");
   c.between("fast_threshold", fast_threshold, 0, 255, false);  // FAST's intensity difference
   c.between("candidate_fast_threshold", candidate_fast_threshold, 0, 255, false);

@@ -14,7 +14,7 @@
 #include "dynaorb/dynamic/candidate_regions.h"
 #include "dynaorb/io/errors.h"
 #include "file_node_options.h"
-#include "option_checks.h"
+#include "../core/option_checks.h"
 
 namespace dynaorb::dynamic {
 
@@ -54,7 +54,7 @@ void StdynOptions::read(const cv::FileNode& node) {
 }
 
 void StdynOptions::validate() const {
-  const detail::OptionChecks c("Dynamic.stdyn");
+  const dynaorb::detail::OptionChecks c("Dynamic.stdyn");
   c.positive("epipolar_threshold_px", epipolar_threshold_px);
   c.positive("f_ransac_threshold_px", f_ransac_threshold_px);
   c.between("f_ransac_confidence", f_ransac_confidence, 0, 1, false);

@@ -19,6 +19,7 @@
 #include "dynaorb/io/trajectory_io.h"
 #include "dynaorb/system.h"
 #include "dynaorb/vocab/vocabulary.h"
+#include "option_bindings.h"
 
 namespace py = pybind11;
 using namespace dynaorb;
@@ -280,43 +281,7 @@ PYBIND11_MODULE(_core, m) {
       "ORB keypoints (N, 4: x, y, level, angle in degrees) and descriptors (N, 32) uint8 from the "
       "System's extractor with the settings' ORBextractor parameters (no undistortion).");
 
-  py::class_<tracking::TrackerOptions>(m, "TrackerOptions",
-                                      "The tracking thread's options (dynaorb/tracking/tracker.h; defaults\n"
-                                      "are ORB-SLAM2's). max_frames is replaced by the settings' Camera.fps when set.")
-      .def(py::init<>())
-      .def_readwrite("min_init_keypoints", &tracking::TrackerOptions::min_init_keypoints)
-      .def_readwrite("min_init_depth_points", &tracking::TrackerOptions::min_init_depth_points)
-      .def_readwrite("motion_th_stereo", &tracking::TrackerOptions::motion_th_stereo)
-      .def_readwrite("motion_th_mono", &tracking::TrackerOptions::motion_th_mono)
-      .def_readwrite("min_motion_matches", &tracking::TrackerOptions::min_motion_matches)
-      .def_readwrite("min_reference_matches", &tracking::TrackerOptions::min_reference_matches)
-      .def_readwrite("reference_bow_ratio", &tracking::TrackerOptions::reference_bow_ratio)
-      .def_readwrite("min_pose_inliers", &tracking::TrackerOptions::min_pose_inliers)
-      .def_readwrite("min_local_map_inliers", &tracking::TrackerOptions::min_local_map_inliers)
-      .def_readwrite("local_search_th_stereo", &tracking::TrackerOptions::local_search_th_stereo)
-      .def_readwrite("local_search_th_rgbd", &tracking::TrackerOptions::local_search_th_rgbd)
-      .def_readwrite("local_search_th_mono", &tracking::TrackerOptions::local_search_th_mono)
-      .def_readwrite("max_local_keyframes", &tracking::TrackerOptions::max_local_keyframes)
-      .def_readwrite("ref_ratio_stereo", &tracking::TrackerOptions::ref_ratio_stereo)
-      .def_readwrite("ref_ratio_mono", &tracking::TrackerOptions::ref_ratio_mono)
-      .def_readwrite("close_tracked_max", &tracking::TrackerOptions::close_tracked_max)
-      .def_readwrite("close_untracked_min", &tracking::TrackerOptions::close_untracked_min)
-      .def_readwrite("new_keyframe_close_points", &tracking::TrackerOptions::new_keyframe_close_points)
-      .def_readwrite("max_frames", &tracking::TrackerOptions::max_frames)
-      .def_readwrite("min_frames", &tracking::TrackerOptions::min_frames)
-      .def_readwrite("reset_if_lost_below_keyframes", &tracking::TrackerOptions::reset_if_lost_below_keyframes)
-      .def_readwrite("reset_after_lost", &tracking::TrackerOptions::reset_after_lost)
-      .def_readwrite("new_map_after_lost_s", &tracking::TrackerOptions::new_map_after_lost_s)
-      .def_readwrite("mono_init_feature_factor", &tracking::TrackerOptions::mono_init_feature_factor)
-      .def_readwrite("mono_init_feature_frames", &tracking::TrackerOptions::mono_init_feature_frames)
-      .def_readwrite("mono_init_release_tracked", &tracking::TrackerOptions::mono_init_release_tracked)
-      .def_readwrite("stereo_right_budget_max_factor", &tracking::TrackerOptions::stereo_right_budget_max_factor)
-      .def_readwrite("mono_init_min_keypoints", &tracking::TrackerOptions::mono_init_min_keypoints)
-      .def_readwrite("mono_init_window", &tracking::TrackerOptions::mono_init_window)
-      .def_readwrite("mono_init_nn_ratio", &tracking::TrackerOptions::mono_init_nn_ratio)
-      .def_readwrite("mono_init_min_matches", &tracking::TrackerOptions::mono_init_min_matches)
-      .def_readwrite("mono_init_ba_iterations", &tracking::TrackerOptions::mono_init_ba_iterations)
-      .def_readwrite("mono_init_min_tracked", &tracking::TrackerOptions::mono_init_min_tracked);
+  bind_options(m);
 
   py::class_<dynamic::DynamicFilterOptions>(
       m, "DynamicFilterOptions",
@@ -371,10 +336,13 @@ PYBIND11_MODULE(_core, m) {
 
   py::class_<System>(m, "System")
       .def(py::init([](const Settings& s, const std::string& sensor, bool synchronous_mapping,
-                       const py::object& vocabulary, bool loop_closing, bool global_ba, const py::object& dyn,
-                       const py::object& tracker, const py::object& background_nice) {
+                       const py::object& vocabulary, bool loop_closing, const py::object& global_ba,
+                       const py::object& dyn, const py::object& tracker, const py::object& background_nice,
+                       const py::object& mapping_options, const py::object& loop_options) {
              SystemOptions o;
              if (!tracker.is_none()) o.tracker = tracker.cast<tracking::TrackerOptions>();
+             if (!mapping_options.is_none()) o.mapping = mapping_options.cast<::dynaorb::mapping::LocalMapperOptions>();
+             if (!loop_options.is_none()) o.loop = loop_options.cast<::dynaorb::loop::LoopCloserOptions>();
              if (!background_nice.is_none()) {
                const int nice = background_nice.cast<int>();
                check_background_nice(nice, "background_nice");
@@ -383,21 +351,22 @@ PYBIND11_MODULE(_core, m) {
              o.synchronous_mapping = synchronous_mapping;
              o.vocabulary = vocabulary_from(vocabulary);
              o.loop_closing = loop_closing;
-             o.loop.global_ba = global_ba;
+             if (!global_ba.is_none()) o.loop.global_ba = global_ba.cast<bool>();
              o.dynamic = dynamic_from(dyn);
              return std::make_unique<System>(s, parse_sensor(sensor), o);
            }),
            py::arg("settings"), py::arg("sensor"), py::arg("synchronous_mapping") = false,
-           py::arg("vocabulary") = py::none(), py::arg("loop_closing") = true, py::arg("global_ba") = true,
+           py::arg("vocabulary") = py::none(), py::arg("loop_closing") = true, py::arg("global_ba") = py::none(),
            py::arg("dynamic") = py::none(), py::arg("tracker") = py::none(),
-           py::arg("background_nice") = py::none(),
+           py::arg("background_nice") = py::none(), py::arg("mapping") = py::none(), py::arg("loop") = py::none(),
            "synchronous_mapping: map each keyframe before tracking the next frame (repeatable runs).\n"
            "vocabulary: None, a Vocabulary or a path to one (ORBvoc.txt or binary): bag-of-words\n"
            "matching, a keyframe database and relocalisation of lost frames.\n"
            "loop_closing: detect and correct loops (needs the vocabulary); global_ba: a global\n"
-           "bundle adjustment after each loop correction.\n"
+           "bundle adjustment after each loop correction (None: the loop options', True by default).\n"
            "dynamic: None (off), a DynamicFilterOptions or a preset file: the dynamic-object front end.\n"
-           "tracker: None (the defaults) or a TrackerOptions.\n"
+           "tracker, mapping, loop: None (the defaults) or a TrackerOptions, LocalMapperOptions,\n"
+           "LoopCloserOptions (each checked here: InputError naming a value out of range).\n"
            "background_nice: None (the default, 10) or 0-19: the nice value of the local mapping, loop\n"
            "closing and global BA threads above the process's (0: tracking's priority).")
       .def("track_mono",

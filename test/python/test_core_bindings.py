@@ -107,6 +107,58 @@ def test_run_takes_tracker_options(data, tmp_path):
     assert stats["tracked_frames"] >= 1
 
 
+def test_mapping_and_loop_options_reach_the_system(data):
+    """LocalMapperOptions from Python: without local BA no local BA runs, with
+    the defaults (ORB-SLAM2's) it runs on the keyframes of KITTI 06's first
+    frames."""
+    o = core().LocalMapperOptions()
+    assert o.neighbors_stereo == 10 and o.min_found_ratio == 0.25 and o.local_ba
+    assert core().LoopCloserOptions().ransac.min_inliers == 20
+    provider = core().open_dataset("kitti", str(data / "kitti/sequences/06"), "stereo")
+    settings = provider.default_settings()
+    runs = {}
+    for local_ba in (True, False):
+        o.local_ba = local_ba
+        system = core().System(settings, "stereo", synchronous_mapping=True, mapping=o,
+                               loop=core().LoopCloserOptions())
+        for i in range(12):
+            system.track_frame(provider.load(i), None, None)
+        runs[local_ba] = system.map_summary()["local_ba_runs"]
+    assert runs[True] > 0 and runs[False] == 0
+
+
+def test_mapping_and_loop_options_are_checked(data, tmp_path):
+    """A value out of range is refused where the System is made, naming the
+    option; an unknown or malformed one by the runner before anything loads."""
+    provider = core().open_dataset("tum", str(data / "tum/rgbd_dataset_freiburg3_walking_xyz_fragment"))
+    settings = provider.default_settings()
+    mapping = core().LocalMapperOptions()
+    mapping.min_found_ratio = float("nan")
+    with pytest.raises(ValueError, match="local mapping option 'min_found_ratio' is nan"):
+        core().System(settings, "rgbd", mapping=mapping)
+    loop = core().LoopCloserOptions()
+    loop.ransac.chi2 = -1.0  # a nested field, changed in place
+    with pytest.raises(ValueError, match="loop closing option 'ransac.chi2' is -1"):
+        core().System(settings, "rgbd", loop=loop)
+
+    from dynaorb.runner import RunOptions, run_dataset
+    base = dict(kind="tum", path=str(data / "tum/rgbd_dataset_freiburg3_walking_xyz_fragment"),
+                out=str(tmp_path / "o"), vocabulary="none", progress=False)
+    with pytest.raises(ValueError, match="unknown local mapping option 'neighbours_stereo'"):
+        run_dataset(RunOptions(**base, mapping={"neighbours_stereo": 5}))
+    with pytest.raises(ValueError, match="unknown loop closing option 'ransac.inliers' \\(known in ransac: chi2"):
+        run_dataset(RunOptions(**base, loop={"ransac.inliers": 5}))
+    with pytest.raises(ValueError, match="'ransac' is a group of options"):
+        run_dataset(RunOptions(**base, loop={"ransac": 5}))
+    with pytest.raises(ValueError, match="'ransac.min_inliers': 2.5 is not a whole number"):
+        run_dataset(RunOptions(**base, loop={"ransac.min_inliers": 2.5}))
+    with pytest.raises(ValueError, match="local mapping option 'redundant_ratio' is 1.5"):
+        run_dataset(RunOptions(**base, mapping={"redundant_ratio": 1.5}))
+    stats = run_dataset(RunOptions(**base, mapping={"neighbors_stereo": 15}, loop={"ransac.chi2": 7.8}))
+    assert stats["mapping_options"] == {"neighbors_stereo": 15}
+    assert stats["loop_options"] == {"ransac.chi2": 7.8}
+
+
 def _thread_nices() -> list[int]:
     """Nice values of this process's threads (field 19 of /proc/self/task/*/stat)."""
     out = []

@@ -78,6 +78,10 @@ struct LoopCloserOptions {
   // The loop closing and global BA threads' nice value above the process's
   // (core/thread_priority.h). 0: the same priority as tracking.
   int thread_nice = 10;
+
+  // InputError naming the option ("loop closing option 'ransac.chi2' is
+  // -1; ...") for a value that would change loop closing silently.
+  void validate() const;
 };
 
 struct LoopCloserCounters {

@@ -54,6 +54,10 @@ struct LocalMapperOptions {
   // The mapping thread's nice value above the process's (core/thread_priority.h):
   // tracking gets the CPU first when the cores are busy. 0: the same priority.
   int thread_nice = 10;
+
+  // InputError naming the option ("local mapping option 'min_found_ratio' is
+  // nan; ...") for a value that would change mapping silently.
+  void validate() const;
 };
 
 struct LocalMapperCounters {

@@ -19,7 +19,9 @@ def cmd_run(args) -> int:
                                    synchronous_mapping=not args.async_mapping, realtime=args.realtime,
                                    background_nice=args.background_nice, save_map=args.save_map,
                                    load_map=args.load_map, localization=args.localization,
-                                   tracker=key_values(args.tracker, "--tracker")))
+                                   tracker=key_values(args.tracker, "--tracker"),
+                                   mapping=key_values(args.mapping, "--mapping"),
+                                   loop=key_values(args.loop, "--loop")))
     print(summary_line(args.out, stats))
     return 0
 

@@ -70,6 +70,12 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--tracker", metavar="KEY=VALUE", action="append", default=[],
                    help="a tracking option (a field of dynaorb._core.TrackerOptions), repeatable; e.g. "
                         "--tracker mono_init_feature_factor=5 --tracker mono_init_feature_frames=40")
+    r.add_argument("--mapping", metavar="KEY=VALUE", action="append", default=[],
+                   help="a local mapping option (a field of dynaorb._core.LocalMapperOptions), repeatable; "
+                        "e.g. --mapping neighbors_stereo=15")
+    r.add_argument("--loop", metavar="KEY=VALUE", action="append", default=[],
+                   help="a loop closing option (a field of dynaorb._core.LoopCloserOptions; ransac.NAME for "
+                        "its Sim3RansacOptions), repeatable; e.g. --loop min_projection_matches=50")
     r.set_defaults(func=commands.cmd_run)
 
     e = sub.add_parser("eval", help="ATE / RPE of an estimate against ground truth (evo)")

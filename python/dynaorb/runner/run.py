@@ -109,6 +109,11 @@ class RunOptions:
     # Tracking options by name (_core.TrackerOptions fields, e.g.
     # {"mono_init_feature_factor": 5, "mono_init_feature_frames": 40}); the rest keep their defaults.
     tracker: dict | None = None
+    # Local mapping's and loop closing's options the same way
+    # (_core.LocalMapperOptions, _core.LoopCloserOptions fields, e.g.
+    # {"neighbors_stereo": 15}, {"ransac.chi2": 7.8}).
+    mapping: dict | None = None
+    loop: dict | None = None
     # A provider object to run instead of opening kind/path (e.g. a
     # dynaorb.ros.bag.BagProvider); frames that carry `labels` (class ids)
     # get the mask of movable_ids when no other mask source is given.
@@ -287,24 +292,35 @@ def _mask_name(image_path: str) -> str:
     return pathlib.Path(image_path).with_suffix(".png").name
 
 
-def tracker_options(_core, values: dict | None):
-    """A _core.TrackerOptions with `values` (field name -> number) set, or
-    None for the defaults. ValueError names an unknown field or a bad value."""
+def core_options(cls, values: dict | None, what: str):
+    """A `cls()` (a _core option class: TrackerOptions, LocalMapperOptions,
+    LoopCloserOptions) with `values` set (field name -> number; a dotted name,
+    e.g. "ransac.chi2", reaches a nested one), or None for the defaults.
+    ValueError names an unknown field or a bad value ("unknown {what} option
+    ..."); the ranges are checked where the System is made."""
     if not values:
         return None
-    o = _core.TrackerOptions()
+    o = cls()
     for key, value in values.items():
-        if key.startswith("_") or not hasattr(o, key):
-            known = ", ".join(k for k in dir(o) if not k.startswith("_"))
-            raise ValueError(f"unknown tracker option '{key}' (known: {known})")
-        current = getattr(o, key)
+        *groups, field = key.split(".")
+        target = o  # the struct that holds the field: o, or a nested one (o.ransac)
+        for depth, name in enumerate(groups + [field]):
+            fields = [k for k in dir(target) if not k.startswith("_") and not callable(getattr(target, k))]
+            if name not in fields:
+                where = f" in {'.'.join(groups[:depth])}" if depth else ""
+                raise ValueError(f"unknown {what} option '{key}' (known{where}: {', '.join(fields)})")
+            if depth < len(groups):
+                target = getattr(target, name)
+        current = getattr(target, field)
+        if not isinstance(current, (bool, int, float)):
+            raise ValueError(f"{what} option '{key}' is a group of options: name one of its fields ('{key}.NAME')")
         try:
             cast = type(current)(value) if not isinstance(current, bool) else bool(int(value))
         except (TypeError, ValueError):
-            raise ValueError(f"tracker option '{key}': {value!r} is not a {type(current).__name__}") from None
+            raise ValueError(f"{what} option '{key}': {value!r} is not a {type(current).__name__}") from None
         if isinstance(current, int) and not isinstance(current, bool) and float(value) != cast:
-            raise ValueError(f"tracker option '{key}': {value!r} is not a whole number")
-        setattr(o, key, cast)
+            raise ValueError(f"{what} option '{key}': {value!r} is not a whole number")
+        setattr(target, field, cast)
     return o
 
 
@@ -312,12 +328,15 @@ def run_dataset(opts: RunOptions) -> dict:
     """Runs a sequence; returns the stats also written to OUT/stats.json."""
     _core = core()
     resolve_dynamic(opts.dynamic)  # an unknown preset fails before anything is loaded
-    tracker = tracker_options(_core, opts.tracker)  # and so does an unknown tracker option
+    # And so does an unknown tracking, mapping or loop closing option.
+    options = {"tracker": core_options(_core.TrackerOptions, opts.tracker, "tracker"),
+               "mapping": core_options(_core.LocalMapperOptions, opts.mapping, "local mapping"),
+               "loop": core_options(_core.LoopCloserOptions, opts.loop, "loop closing")}
     if opts.labels and opts.segment:
         raise ValueError("give either a label folder (--labels) or a segmentation model (--segment), not both")
     segmenter, semantic = _semantic(opts)
     try:
-        return _run(_core, opts, segmenter, semantic, tracker)
+        return _run(_core, opts, segmenter, semantic, options)
     finally:
         if semantic is not None:
             semantic.close()
@@ -341,7 +360,7 @@ def _label_mask(labels, movable: np.ndarray):
     return np.where(movable[labels], np.uint8(255), np.uint8(0))
 
 
-def _run(_core, opts: RunOptions, segmenter, semantic, tracker) -> dict:
+def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
     pacer = Pacer(opts.realtime) if opts.realtime else None  # a bad rate refused before any work
     provider = opts.provider if opts.provider is not None else _core.open_dataset(opts.kind, opts.path, opts.sensor)
     for w in provider.warnings:
@@ -369,7 +388,7 @@ def _run(_core, opts: RunOptions, segmenter, semantic, tracker) -> dict:
             dynamic.movable_classes = [int(i) for i in segmenter.card.movable]
     system = _core.System(settings, provider.sensor, synchronous_mapping=opts.synchronous_mapping,
                           vocabulary=vocabulary, dynamic=dynamic if dynamic_on else None,
-                          tracker=tracker, background_nice=opts.background_nice)
+                          background_nice=opts.background_nice, **options)
     map_io = {}
     if opts.load_map:
         t0 = time.perf_counter()
@@ -507,6 +526,8 @@ def _run(_core, opts: RunOptions, segmenter, semantic, tracker) -> dict:
         "realtime": pacer.summary() if pacer is not None else None,
         "background_nice": opts.background_nice,
         "tracker_options": dict(opts.tracker or {}),
+        "mapping_options": dict(opts.mapping or {}),
+        "loop_options": dict(opts.loop or {}),
         "localization": opts.localization,
         "map_file": map_io or None,
         "stage_ms_median": _median_stages(per_frame_ms),
