@@ -7,6 +7,7 @@
 #include <random>
 #include <string>
 
+#include "dynaorb/io/errors.h"
 #include "dynaorb/io/settings.h"
 
 namespace dynaorb::test {
@@ -26,6 +27,20 @@ inline Settings rgbd_settings() {
   s.camera.th_depth = 40;
   s.camera.depth_map_factor = 5000;
   return s;
+}
+
+// The message of the InputError an Options' validate() throws once `change`
+// has been applied to the defaults; "" when it passes.
+template <typename Options, typename Change>
+std::string validation_refusal(Change change) {
+  Options o;
+  change(o);
+  try {
+    o.validate();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
 }
 
 // ../shared/data beside the repository, or $DYNAORB_SHARED/data.

@@ -11,6 +11,7 @@
 
 #include "dynaorb/io/errors.h"
 #include "dynaorb/tracking/tracker.h"
+#include "../test_util.h"
 
 namespace dynaorb {
 namespace {
@@ -18,14 +19,7 @@ namespace {
 using tracking::TrackerOptions;
 
 std::string refusal(const std::function<void(TrackerOptions&)>& change) {
-  TrackerOptions o;
-  change(o);
-  try {
-    o.validate();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
+  return test::validation_refusal<TrackerOptions>(change);
 }
 
 TEST(TrackerOptions, DefaultsAreValid) { EXPECT_NO_THROW(TrackerOptions().validate()); }
