@@ -341,8 +341,8 @@ PYBIND11_MODULE(_core, m) {
                        const py::object& mapping_options, const py::object& loop_options) {
              SystemOptions o;
              if (!tracker.is_none()) o.tracker = tracker.cast<tracking::TrackerOptions>();
-             if (!mapping_options.is_none()) o.mapping = mapping_options.cast<::dynaorb::mapping::LocalMapperOptions>();
-             if (!loop_options.is_none()) o.loop = loop_options.cast<::dynaorb::loop::LoopCloserOptions>();
+             if (!mapping_options.is_none()) o.mapping = mapping_options.cast<mapping::LocalMapperOptions>();
+             if (!loop_options.is_none()) o.loop = loop_options.cast<loop::LoopCloserOptions>();
              if (!background_nice.is_none()) {
                const int nice = background_nice.cast<int>();
                check_background_nice(nice, "background_nice");
