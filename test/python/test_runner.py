@@ -4,6 +4,7 @@ from __future__ import annotations
 import collections
 import json
 import shutil
+import statistics
 import subprocess
 import sys
 
@@ -59,6 +60,10 @@ def test_corrupt_frame_is_skipped_and_counted(tmp_path, synth_rgbd):
     waits = [f["map_wait_ms"] for f in frames]
     assert all(w is not None and w >= 0 for w in waits)
     assert stats["map_wait_ms"]["max"] == max(waits) and stats["map_wait_ms"]["median"] <= max(waits)
+    # Each frame's stage times; their medians are stage_ms_median's.
+    extract = [f["stage_ms"]["extract"] for f in frames if "extract" in f["stage_ms"]]
+    assert len(extract) == 7 and all(ms > 0 for ms in extract)
+    assert stats["stage_ms_median"]["extract"] == pytest.approx(statistics.median(extract), abs=1e-3)
     assert all(f["map"] == 0 and not f["map_dropped"] and f["rejected"] is None for f in frames)
     assert sum(f["state"] == "OK" for f in frames) == stats["tracked_frames"]
     assert frames[0]["method"] == "init" and frames[0]["new_keyframe"] and frames[0]["keypoints"] > 0

@@ -455,6 +455,8 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
             # Part of the tracking stage spent waiting for the map lock (local
             # mapping, loop closing or global BA changing the map meanwhile).
             "map_wait_ms": result.stage_ms.get("tracking.map_wait"),
+            # This frame's stage times (the medians are in stage_ms_median).
+            "stage_ms": {k: round(v, 4) for k, v in result.stage_ms.items()},
             # Why a frame was not tracked (the initialisation's or tracking's own words).
             "message": None if result.state == "OK" else (result.message or None)})
         per_frame_ms.append(dict(result.stage_ms))
