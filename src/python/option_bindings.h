@@ -1,7 +1,8 @@
 #pragma once
-// The option structs of the core's threads for dynaorb._core: TrackerOptions,
-// LocalMapperOptions, LoopCloserOptions (fields as the C++ structs name them;
-// defaults ORB-SLAM2's).
+// The option structs of the core's threads for dynaorb._core: TrackerOptions
+// (with RelocalizationOptions, PnpRansacOptions, TwoViewOptions),
+// LocalMapperOptions, LoopCloserOptions (with Sim3RansacOptions); fields as
+// the C++ structs' option_fields lists name them, defaults ORB-SLAM2's.
 #include <pybind11/pybind11.h>
 
 namespace dynaorb {

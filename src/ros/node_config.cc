@@ -2,13 +2,17 @@
 
 #include "dynaorb/dynamic/dynamic_filter.h"
 
+#include <ros/console.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <sstream>
+#include <utility>
 
 #include "dynaorb/core/thread_priority.h"
 #include "dynaorb/io/errors.h"
+#include "option_params.h"
 #include "ros_params.h"
 
 namespace dynaorb::node {
@@ -101,17 +105,32 @@ NodeConfig read_config(const ros::NodeHandle& pnh) {
   cfg.system.synchronous_mapping = param_or(pnh, "synchronous_mapping", false);
   cfg.system.loop_closing = param_or(pnh, "loop_closing", true);
   cfg.system.localization_only = param_or(pnh, "localization_only", false);
-  cfg.system.mapping.ba_threads = param_or(pnh, "ba_threads", cfg.system.mapping.ba_threads);
+  // The core's options by their own names (option_params.h): ~tracker/NAME,
+  // ~mapping/NAME, ~loop/NAME, as `dynaorb run --tracker NAME=VALUE`.
+  for (const auto& [ns, set] :
+       {std::pair{"tracker", read_option_params(pnh, "tracker", cfg.system.tracker, "tracker")},
+        std::pair{"mapping", read_option_params(pnh, "mapping", cfg.system.mapping, "local mapping")},
+        std::pair{"loop", read_option_params(pnh, "loop", cfg.system.loop, "loop closing")}}) {
+    std::string line;
+    for (const std::string& s : set) line += " " + s;
+    if (!line.empty()) ROS_INFO("~%s options set:%s", ns, line.c_str());
+  }
+  // The shorter names of the launch file, over ~mapping/ and ~loop/ when set.
+  read_param(pnh, "ba_threads", cfg.system.mapping.ba_threads);
   // Local mapping, loop closing and global BA run this much nicer than the
   // node (core/thread_priority.h), so tracking gets the CPU first.
-  const int nice = param_or(pnh, "background_nice", cfg.system.mapping.thread_nice);
-  check_background_nice(nice, "~background_nice");
-  cfg.system.mapping.thread_nice = cfg.system.loop.thread_nice = nice;
+  int nice = 0;
+  if (read_param(pnh, "background_nice", nice)) {
+    check_background_nice(nice, "~background_nice");
+    cfg.system.mapping.thread_nice = cfg.system.loop.thread_nice = nice;
+  }
   // Lost this long (seconds of image stamps): the map is given up for a new
   // one, whose world is unrelated (TrackingStatus.map counts them); 0: never.
-  cfg.system.tracker.new_map_after_lost_s =
-      param_or(pnh, "new_map_after_lost_s", cfg.system.tracker.new_map_after_lost_s);
-  cfg.system.tracker.validate();  // refused at start-up, naming the parameter, not at the first image
+  read_param(pnh, "new_map_after_lost_s", cfg.system.tracker.new_map_after_lost_s);
+  // Refused at start-up, naming the option, not at the first image.
+  cfg.system.tracker.validate();
+  cfg.system.mapping.validate();
+  cfg.system.loop.validate();
   // The dynamic-object front end: a preset name (config/dynamic/<name>.yaml of
   // this package) or a preset file; "off": none.
   cfg.dynamic = param_or<std::string>(pnh, "dynamic", "off");

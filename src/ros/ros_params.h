@@ -29,6 +29,14 @@ const char* param_type_name() {
 // InputError when it is set with a value of another type.
 template <typename T>
 bool read_param(const ros::NodeHandle& nh, const std::string& name, T& out) {
+  if constexpr (std::is_same_v<T, int>) {
+    // roscpp rounds a floating-point value to the nearest integer (12.5 ->
+    // 13) without a word: refused instead unless it is whole.
+    XmlRpc::XmlRpcValue raw;
+    if (nh.getParam(name, raw) && raw.getType() == XmlRpc::XmlRpcValue::TypeDouble &&
+        static_cast<double>(raw) != std::floor(static_cast<double>(raw)))
+      throw InputError("~" + name + " must be " + param_type_name<T>());
+  }
   T v;
   if (nh.getParam(name, v)) {
     out = v;

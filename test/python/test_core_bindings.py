@@ -159,6 +159,30 @@ def test_mapping_and_loop_options_are_checked(data, tmp_path):
     assert stats["loop_options"] == {"ransac.chi2": 7.8}
 
 
+def test_tracker_option_groups_reach_the_system(data, tmp_path):
+    """TrackerOptions' nested groups (reloc, reloc.pnp, two_view) from Python
+    and the shell: read and written in place, checked by the System."""
+    o = core().TrackerOptions()
+    assert o.reloc.min_inliers == 50 and o.reloc.pnp.chi2 == 5.991 and o.two_view.ratio_h == 0.4
+    o.reloc.pnp.probability = 1.5
+    assert o.reloc.pnp.probability == 1.5  # in place, not on a copy
+    with pytest.raises(ValueError, match="tracker option 'reloc.pnp.probability' is 1.5"):
+        o.validate()
+    provider = core().open_dataset("tum", str(data / "tum/rgbd_dataset_freiburg3_walking_xyz_fragment"))
+    with pytest.raises(ValueError, match="tracker option 'reloc.pnp.probability' is 1.5"):
+        core().System(provider.default_settings(), "rgbd", tracker=o)
+
+    from dynaorb.runner import RunOptions, run_dataset
+    base = dict(kind="tum", path=str(data / "tum/rgbd_dataset_freiburg3_walking_xyz_fragment"),
+                out=str(tmp_path / "o"), vocabulary="none", progress=False)
+    with pytest.raises(ValueError, match="tracker option 'two_view.min_parallax_deg' is 95"):
+        run_dataset(RunOptions(**base, tracker={"two_view.min_parallax_deg": 95}))
+    with pytest.raises(ValueError, match="unknown tracker option 'reloc.pnp.inliers' \\(known in reloc.pnp: chi2"):
+        run_dataset(RunOptions(**base, tracker={"reloc.pnp.inliers": 5}))
+    stats = run_dataset(RunOptions(**base, tracker={"reloc.min_inliers": 40}))
+    assert stats["tracker_options"] == {"reloc.min_inliers": 40} and stats["tracked_fraction"] > 0
+
+
 def _thread_nices() -> list[int]:
     """Nice values of this process's threads (field 19 of /proc/self/task/*/stat)."""
     out = []

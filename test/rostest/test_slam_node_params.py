@@ -17,6 +17,11 @@ REFUSED = {
     "first_labels_timeout": ("-2.0", "~first_labels_timeout must be a finite number of seconds >= 0"),
     "max_frames_waiting": ("0", "~max_frames_waiting must be >= 1"),
     "queue_size": ("0", "~queue_size must be >= 1"),
+    # The core's options (~tracker/, ~mapping/, ~loop/), checked by their own validate().
+    "tracker/min_pose_inliers": ("-1", "tracker option 'min_pose_inliers' is -1"),
+    "tracker/reloc/pnp/probability": ("1.5", "tracker option 'reloc.pnp.probability' is 1.5"),
+    "mapping/neighbors_stereo": ("0", "local mapping option 'neighbors_stereo' is 0"),
+    "loop/ransac/chi2": ("-2.0", "loop closing option 'ransac.chi2' is -2"),
 }
 
 
@@ -56,19 +61,42 @@ class SlamNodeParamsTest(unittest.TestCase):
     def test_bad_values_refused_naming_the_parameter(self):
         for key, (value, message) in REFUSED.items():
             with self.subTest(key=key):
-                self.assert_refused(self.run_node(f"refuse_{key}", [f"_{key}:={value}"]), message)
+                name = key.replace("/", "_")  # node names hold no slash
+                self.assert_refused(self.run_node(f"refuse_{name}", [f"_{key}:={value}"]), message)
 
     def test_wrong_types_refused_not_replaced_by_defaults(self):
         self.assert_refused(self.run_node("refuse_nan", [], {"max_label_age": float("nan")}),
                             "~max_label_age must be a finite number")
         for arg, message in (("_max_label_age:=soon", "~max_label_age must be a number"),
                              ("_queue_size:=ten", "~queue_size must be an integer"),
+                             ("_queue_size:=10.5", "~queue_size must be an integer"),  # not rounded
                              ("_use_labels:=1", "~use_labels must be true or false"),
                              ("_movable_ids:=person", "~movable_ids must be a list of integers"),
                              ("_Camera/fx:=wide", "~Camera/fx must be a number"),
                              ("_camera_rpy:=up", "~camera_rpy must be a list of numbers")):
             with self.subTest(arg=arg):
                 self.assert_refused(self.run_node("refuse_type", [arg]), message)
+
+    def test_core_options_by_name(self):
+        # A misspelt or misplaced option is refused, naming it, not ignored.
+        for arg, message in (("_mapping/neighbours_stereo:=20", "~mapping/neighbours_stereo is not a local mapping option"),
+                             ("_loop/chi2:=5.0", "~loop/chi2 is not a loop closing option"),
+                             ("_tracker/reloc/pnp:=3", "~tracker/reloc/pnp is not a tracker option"),
+                             ("_mapping/local_ba:=1", "~mapping/local_ba must be true or false"),
+                             ("_tracker/min_pose_inliers:=12.5", "~tracker/min_pose_inliers must be an integer"),
+                             ("_tracker/reloc/pnp/seed:=-3", "~tracker/reloc/pnp/seed must be an integer >= 0")):
+            with self.subTest(arg=arg):
+                self.assert_refused(self.run_node("refuse_option", [arg]), message)
+        # Good values are taken and logged at start-up (the bad queue size
+        # read after them stops the node there).
+        done = self.run_node("options_set", ["_queue_size:=0"],
+                             {"tracker/min_pose_inliers": 15, "mapping": {"local_ba": False},
+                              "loop": {"ransac": {"chi2": 8.5}}})
+        self.assert_refused(done, "~queue_size must be >= 1")
+        out = done.stdout + done.stderr
+        for line in ("~tracker options set: min_pose_inliers=15", "~mapping options set: local_ba=false",
+                     "~loop options set: ransac/chi2=8.5"):
+            self.assertIn(line, out)
 
     def test_camera_offset_needs_three_finite_numbers(self):
         for key, value in (("camera_xyz", [0.1, 0.0]), ("camera_rpy", [0.0, float("nan"), 0.0]),

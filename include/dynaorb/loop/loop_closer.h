@@ -84,6 +84,27 @@ struct LoopCloserOptions {
   void validate() const;
 };
 
+// Its fields by name (dynaorb/core/option_fields.h).
+template <class F>
+void option_fields(const LoopCloserOptions*, F&& f) {
+  f("consistency", &LoopCloserOptions::consistency);
+  f("min_map_keyframes", &LoopCloserOptions::min_map_keyframes);
+  f("min_keyframes_after_loop", &LoopCloserOptions::min_keyframes_after_loop);
+  f("min_bow_matches", &LoopCloserOptions::min_bow_matches);
+  f("bow_nn_ratio", &LoopCloserOptions::bow_nn_ratio);
+  f("ransac", &LoopCloserOptions::ransac);
+  f("projection_radius", &LoopCloserOptions::projection_radius);
+  f("projection_max_distance", &LoopCloserOptions::projection_max_distance);
+  f("min_projection_matches", &LoopCloserOptions::min_projection_matches);
+  f("fuse_radius", &LoopCloserOptions::fuse_radius);
+  f("essential_min_weight", &LoopCloserOptions::essential_min_weight);
+  f("pose_graph_iterations", &LoopCloserOptions::pose_graph_iterations);
+  f("global_ba", &LoopCloserOptions::global_ba);
+  f("global_ba_iterations", &LoopCloserOptions::global_ba_iterations);
+  f("threads", &LoopCloserOptions::threads);
+  f("thread_nice", &LoopCloserOptions::thread_nice);
+}
+
 struct LoopCloserCounters {
   long keyframes = 0;        // keyframes checked
   long candidates = 0;       // consistent candidates found

@@ -38,6 +38,17 @@ struct Sim3RansacOptions {
   unsigned seed = 0;          // the result is a function of the input and the seed
 };
 
+// fix_scale is not a setting: the loop closer sets it from the sensor.
+// Its fields by name (dynaorb/core/option_fields.h).
+template <class F>
+void option_fields(const Sim3RansacOptions*, F&& f) {
+  f("probability", &Sim3RansacOptions::probability);
+  f("min_inliers", &Sim3RansacOptions::min_inliers);
+  f("max_iterations", &Sim3RansacOptions::max_iterations);
+  f("chi2", &Sim3RansacOptions::chi2);
+  f("seed", &Sim3RansacOptions::seed);
+}
+
 struct Sim3RansacResult {
   bool ok = false;            // inliers >= min_inliers
   Sim3 S12;                   // X1 ~ S12 * X2: the best (refined) hypothesis, even if !ok

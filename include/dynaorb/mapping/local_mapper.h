@@ -60,6 +60,23 @@ struct LocalMapperOptions {
   void validate() const;
 };
 
+// Its fields by name (dynaorb/core/option_fields.h).
+template <class F>
+void option_fields(const LocalMapperOptions*, F&& f) {
+  f("neighbors_stereo", &LocalMapperOptions::neighbors_stereo);
+  f("neighbors_mono", &LocalMapperOptions::neighbors_mono);
+  f("triangulation_bow_mono", &LocalMapperOptions::triangulation_bow_mono);
+  f("triangulation_bow_stereo", &LocalMapperOptions::triangulation_bow_stereo);
+  f("min_found_ratio", &LocalMapperOptions::min_found_ratio);
+  f("min_observations_stereo", &LocalMapperOptions::min_observations_stereo);
+  f("min_observations_mono", &LocalMapperOptions::min_observations_mono);
+  f("redundant_ratio", &LocalMapperOptions::redundant_ratio);
+  f("redundant_observers", &LocalMapperOptions::redundant_observers);
+  f("local_ba", &LocalMapperOptions::local_ba);
+  f("ba_threads", &LocalMapperOptions::ba_threads);
+  f("thread_nice", &LocalMapperOptions::thread_nice);
+}
+
 struct LocalMapperCounters {
   long keyframes = 0, points_created = 0, points_culled = 0, points_fused = 0;
   long keyframes_culled = 0, local_ba_runs = 0, local_ba_aborted = 0;

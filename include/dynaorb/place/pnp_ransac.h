@@ -19,6 +19,16 @@ struct PnpRansacOptions {
   unsigned seed = 0;          // sampling is deterministic for a given seed
 };
 
+// Its fields by name (dynaorb/core/option_fields.h).
+template <class F>
+void option_fields(const PnpRansacOptions*, F&& f) {
+  f("probability", &PnpRansacOptions::probability);
+  f("min_inliers", &PnpRansacOptions::min_inliers);
+  f("max_iterations", &PnpRansacOptions::max_iterations);
+  f("chi2", &PnpRansacOptions::chi2);
+  f("seed", &PnpRansacOptions::seed);
+}
+
 struct PnpMatch {
   Eigen::Vector3d point_world;
   Eigen::Vector2d pixel;  // undistorted

@@ -58,6 +58,24 @@ struct RelocalizationOptions {
   bool pause_keyframes = false;
 };
 
+// Its fields by name (dynaorb/core/option_fields.h).
+template <class F>
+void option_fields(const RelocalizationOptions*, F&& f) {
+  f("bow_ratio", &RelocalizationOptions::bow_ratio);
+  f("min_bow_matches", &RelocalizationOptions::min_bow_matches);
+  f("try_last_reference", &RelocalizationOptions::try_last_reference);
+  f("pnp", &RelocalizationOptions::pnp);
+  f("min_pose_inliers", &RelocalizationOptions::min_pose_inliers);
+  f("min_inliers", &RelocalizationOptions::min_inliers);
+  f("wide_window", &RelocalizationOptions::wide_window);
+  f("wide_max_distance", &RelocalizationOptions::wide_max_distance);
+  f("narrow_after", &RelocalizationOptions::narrow_after);
+  f("narrow_window", &RelocalizationOptions::narrow_window);
+  f("narrow_max_distance", &RelocalizationOptions::narrow_max_distance);
+  f("local_map_inliers", &RelocalizationOptions::local_map_inliers);
+  f("pause_keyframes", &RelocalizationOptions::pause_keyframes);
+}
+
 struct TrackerOptions {
   int min_init_keypoints = 500;       // keypoints to initialise from a frame (ORB-SLAM2: N > 500)
   int min_init_depth_points = 100;    // of which with depth (ours: ORB-SLAM2 takes any; a map of
@@ -189,6 +207,46 @@ struct TrackerOptions {
   // System calls it on construction.
   void validate() const;
 };
+
+// Its fields by name (dynaorb/core/option_fields.h).
+template <class F>
+void option_fields(const TrackerOptions*, F&& f) {
+  f("min_init_keypoints", &TrackerOptions::min_init_keypoints);
+  f("min_init_depth_points", &TrackerOptions::min_init_depth_points);
+  f("motion_th_stereo", &TrackerOptions::motion_th_stereo);
+  f("motion_th_mono", &TrackerOptions::motion_th_mono);
+  f("min_motion_matches", &TrackerOptions::min_motion_matches);
+  f("min_reference_matches", &TrackerOptions::min_reference_matches);
+  f("reference_bow_ratio", &TrackerOptions::reference_bow_ratio);
+  f("min_pose_inliers", &TrackerOptions::min_pose_inliers);
+  f("min_local_map_inliers", &TrackerOptions::min_local_map_inliers);
+  f("local_search_th_stereo", &TrackerOptions::local_search_th_stereo);
+  f("local_search_th_rgbd", &TrackerOptions::local_search_th_rgbd);
+  f("local_search_th_mono", &TrackerOptions::local_search_th_mono);
+  f("max_local_keyframes", &TrackerOptions::max_local_keyframes);
+  f("ref_ratio_stereo", &TrackerOptions::ref_ratio_stereo);
+  f("ref_ratio_mono", &TrackerOptions::ref_ratio_mono);
+  f("close_tracked_max", &TrackerOptions::close_tracked_max);
+  f("close_untracked_min", &TrackerOptions::close_untracked_min);
+  f("new_keyframe_close_points", &TrackerOptions::new_keyframe_close_points);
+  f("max_frames", &TrackerOptions::max_frames);
+  f("min_frames", &TrackerOptions::min_frames);
+  f("reset_if_lost_below_keyframes", &TrackerOptions::reset_if_lost_below_keyframes);
+  f("reset_after_lost", &TrackerOptions::reset_after_lost);
+  f("new_map_after_lost_s", &TrackerOptions::new_map_after_lost_s);
+  f("mono_init_feature_factor", &TrackerOptions::mono_init_feature_factor);
+  f("mono_init_feature_frames", &TrackerOptions::mono_init_feature_frames);
+  f("mono_init_release_tracked", &TrackerOptions::mono_init_release_tracked);
+  f("mono_init_min_keypoints", &TrackerOptions::mono_init_min_keypoints);
+  f("mono_init_window", &TrackerOptions::mono_init_window);
+  f("mono_init_nn_ratio", &TrackerOptions::mono_init_nn_ratio);
+  f("mono_init_min_matches", &TrackerOptions::mono_init_min_matches);
+  f("mono_init_ba_iterations", &TrackerOptions::mono_init_ba_iterations);
+  f("mono_init_min_tracked", &TrackerOptions::mono_init_min_tracked);
+  f("stereo_right_budget_max_factor", &TrackerOptions::stereo_right_budget_max_factor);
+  f("two_view", &TrackerOptions::two_view);
+  f("reloc", &TrackerOptions::reloc);
+}
 
 struct TrackOutcome {
   bool ok = false;

@@ -57,6 +57,28 @@ struct TwoViewOptions {
   bool parallel = true;            // H and F in two threads (std::async)
 };
 
+// Its fields by name (dynaorb/core/option_fields.h).
+template <class F>
+void option_fields(const TwoViewOptions*, F&& f) {
+  f("sigma", &TwoViewOptions::sigma);
+  f("ransac_iterations", &TwoViewOptions::ransac_iterations);
+  f("homography_sample", &TwoViewOptions::homography_sample);
+  f("chi2_h", &TwoViewOptions::chi2_h);
+  f("chi2_f", &TwoViewOptions::chi2_f);
+  f("score_gamma", &TwoViewOptions::score_gamma);
+  f("ratio_h", &TwoViewOptions::ratio_h);
+  f("refine_with_inliers", &TwoViewOptions::refine_with_inliers);
+  f("reproj_chi2", &TwoViewOptions::reproj_chi2);
+  f("min_parallax_deg", &TwoViewOptions::min_parallax_deg);
+  f("parallax_rank", &TwoViewOptions::parallax_rank);
+  f("min_triangulated", &TwoViewOptions::min_triangulated);
+  f("min_good_fraction", &TwoViewOptions::min_good_fraction);
+  f("clear_winner_ratio", &TwoViewOptions::clear_winner_ratio);
+  f("try_other_model", &TwoViewOptions::try_other_model);
+  f("seed", &TwoViewOptions::seed);
+  f("parallel", &TwoViewOptions::parallel);
+}
+
 // (index in the reference keypoints, index in the current keypoints)
 using TwoViewMatch = std::pair<int, int>;
 
