@@ -24,7 +24,10 @@ def test_options_refuse_what_cannot_run():
     for kwargs, says in [({"sensors": ("lidar",)}, "lidar"), ({"conditions": ("full",)}, "include static"),
                          ({"conditions": ("static", "best")}, "best"), ({"jobs": 0}, "jobs"),
                          ({"seeds": ()}, "at least one seed"), ({"preset": "fastest"}, "unknown dynamic mode"),
-                         ({"preset": "li", "sensors": ("rgbd",)}, "no stage list for the rgbd sensor")]:
+                         ({"preset": "li", "sensors": ("rgbd",)}, "no stage list for the rgbd sensor"),
+                         ({"tracker": {"min_pose_iniers": 5}}, "unknown tracker option 'min_pose_iniers'"),
+                         ({"mapping": {"redundant_ratio": 2}}, "local mapping option 'redundant_ratio' is 2"),
+                         ({"loop": {"ransac.chi2": 0}}, "loop closing option 'ransac.chi2' is 0")]:
         with pytest.raises(ValueError, match=says):
             SeedsOptions(**kwargs).validate()
 
@@ -70,7 +73,7 @@ def test_summary_medians_worst_seed_and_targets():
 def test_a_small_sweep_runs_every_condition(tmp_path, data):
     """One seed of a small RGB-D room (20 frames, 320x240), the four conditions run as child processes."""
     opts = SeedsOptions(out=str(tmp_path / "out"), seeds=(7,), sensors=("rgbd",), jobs=2, frames=20,
-                        width=320, height=240, fx=262.5)
+                        width=320, height=240, fx=262.5, tracker={"reloc.min_inliers": 45})
     results = run_seeds(opts, progress=lambda m: None)
     runs = {r["condition"]: r for r in results["records"]}
     assert set(runs) == {"static", "full", "masks", "off"}
@@ -78,7 +81,7 @@ def test_a_small_sweep_runs_every_condition(tmp_path, data):
         assert not r.get("error"), (condition, r.get("error"))
         assert r["tracked_frames"] == r["frames"] == 20, condition
         spec = json.loads((tmp_path / "out" / "runs" / "rgbd" / "s7" / condition / "spec.json").read_text())
-        assert spec["synchronous_mapping"] is True
+        assert spec["synchronous_mapping"] is True and spec["tracker"] == {"reloc.min_inliers": 45}
         assert ("labels" in spec) == (condition == "full") and ("masks" in spec) == (condition == "masks")
         assert ("_m0_" in spec["path"]) == (condition == "static")
     # Measured on this small room (synchronous, so every run repeats it): static 5.3 mm, full 8.9 mm

@@ -75,6 +75,11 @@ class SeedsOptions:
     timeout_s: float = RUN_TIMEOUT_S
     resume: bool = False             # reuse OUT/runs/... records written for the same spec
     peer_venv: str | None = None     # pyorbslam3's venv for the peer conditions (default: the peer's cache)
+    # The core's options for every dynaorb run (not the peer's): RunOptions' tracker / mapping / loop
+    # ({name: value}, dotted names for nested groups), e.g. a tracker value under test.
+    tracker: dict | None = None
+    mapping: dict | None = None
+    loop: dict | None = None
 
     def validate(self) -> None:
         if not self.seeds:
@@ -88,6 +93,15 @@ class SeedsOptions:
                              + (f" (unknown: {', '.join(bad)})" if bad else ""))
         if self.jobs < 1:
             raise ValueError(f"jobs must be >= 1, got {self.jobs}")
+        from dynaorb import core
+        from dynaorb.runner.run import core_options
+
+        for cls, values, what in ((core().TrackerOptions, self.tracker, "tracker"),
+                                  (core().LocalMapperOptions, self.mapping, "local mapping"),
+                                  (core().LoopCloserOptions, self.loop, "loop closing")):
+            options = core_options(cls, values, what)  # an unknown name refused before any rendering
+            if options is not None:
+                options.validate()
         if any(c in FILTERED for c in self.conditions):
             from dynaorb.bench.suites import preset_applicability
 
@@ -147,6 +161,7 @@ def _run(seq: Sequence, sensor: str, seed: int, condition: str, out: pathlib.Pat
         spec["labels"] = seq.labels
     if masks:
         spec["masks"] = str(pathlib.Path(seq.path) / "dynamic_masks")
+    spec.update({k: v for k, v in (("tracker", opts.tracker), ("mapping", opts.mapping), ("loop", opts.loop)) if v})
     record = {"sensor": sensor, "seed": seed, "condition": condition, "out": str(out)}
     reused = reused_record(out, "spec.json", spec, opts.resume)
     if reused is not None:

@@ -177,7 +177,10 @@ def cmd_bench(args) -> int:
         try:
             opts = SeedsOptions(out=args.out, seeds=parse_seeds(args.seeds), jobs=args.jobs, resume=args.resume,
                                 sensors=parse_list(args.sensors), conditions=parse_list(args.conditions),
-                                preset=args.preset, synth_root=args.synth_root, peer_venv=args.peer_venv)
+                                preset=args.preset, synth_root=args.synth_root, peer_venv=args.peer_venv,
+                                tracker=key_values(args.tracker, "--tracker") or None,
+                                mapping=key_values(args.mapping, "--mapping") or None,
+                                loop=key_values(args.loop, "--loop") or None)
             opts.validate()
         except ValueError as exc:
             print(f"dynaorb bench: {exc}", file=sys.stderr)

@@ -176,6 +176,10 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--jobs", type=int, default=1,
                    help="seeds: runs at a time (default 1; the runs map synchronously, so their ATE does not "
                         "depend on it)")
+    for flag, what in (("--tracker", "tracking"), ("--mapping", "local mapping"), ("--loop", "loop closing")):
+        b.add_argument(flag, metavar="KEY=VALUE", action="append", default=[],
+                       help=f"seeds: a {what} option for every dynaorb run, as `dynaorb run {flag}` "
+                            "(repeatable; a variant under test against the defaults of another --out)")
     b.add_argument("--no-peer", action="store_true", help="quick/full: without the ORB-SLAM3 comparison")
     b.add_argument("--realtime", type=float, nargs="?", const=1.0, default=0.0, metavar="RATE",
                    help="quick/full: deliver the frames to dynaorb and to ORB-SLAM3 alike at RATE times the "
