@@ -165,6 +165,17 @@ struct TrackerOptions {
   //     median 1.05x static (seeds 0-2: 0.89), ground-truth masks 1.00x
   //     (0.98); synthetic frames switch at frame ~20; 8.7 ms
   // (ORB-SLAM3 keeps its 5x extractor for about fps frames after the map.)
+  // 600 measured again at eac46ff: MH_05 0.0116 m against 0.0153, 242/250
+  // frames both; the bench's synthetic monocular sequences (seed 0,
+  // asynchronous mapping, unpaced, 4 + 4 interleaved runs) track call median
+  // with movers `full` 13.1 -> 12.5 ms (ORB-SLAM3 8.7-9.6 in
+  // out/bench_full28), `off` 11.4 -> 6.8 ms, ATE the same; without movers
+  // `full` 12.0 -> 11.3 ms but ATE 3.6-4.1 -> 4.9-5.5 mm. `dynaorb bench
+  // --suite seeds --sensors mono --tracker mono_init_release_tracked=600`
+  // (12 seeds): static median 4.99 -> 5.24 mm, full / static 1.09 -> 1.04,
+  // masks 1.07 -> 0.88, off 3.53 -> 2.47 (off's ATE itself 19 -> 12 mm).
+  // Not taken: `full` stays above ORB-SLAM3 either way and loses accuracy
+  // without movers.
   int mono_init_release_tracked = 1000;
   int mono_init_min_keypoints = 100;  // reference and current frame: more keypoints than this
   double mono_init_window = 100.0;    // SearchForInitialization window, pixels
