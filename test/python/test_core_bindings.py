@@ -179,6 +179,8 @@ def test_tracker_option_groups_reach_the_system(data, tmp_path):
         run_dataset(RunOptions(**base, tracker={"two_view.min_parallax_deg": 95}))
     with pytest.raises(ValueError, match="unknown tracker option 'reloc.pnp.inliers' \\(known in reloc.pnp: chi2"):
         run_dataset(RunOptions(**base, tracker={"reloc.pnp.inliers": 5}))
+    with pytest.raises(ValueError, match="tracker option 'reloc.pnp.seed': -1 is not an integer >= 0"):
+        run_dataset(RunOptions(**base, tracker={"reloc.pnp.seed": -1}))
     stats = run_dataset(RunOptions(**base, tracker={"reloc.min_inliers": 40}))
     assert stats["tracker_options"] == {"reloc.min_inliers": 40} and stats["tracked_fraction"] > 0
 

@@ -320,7 +320,10 @@ def core_options(cls, values: dict | None, what: str):
             raise ValueError(f"{what} option '{key}': {value!r} is not a {type(current).__name__}") from None
         if isinstance(current, int) and not isinstance(current, bool) and float(value) != cast:
             raise ValueError(f"{what} option '{key}': {value!r} is not a whole number")
-        setattr(target, field, cast)
+        try:
+            setattr(target, field, cast)
+        except TypeError:  # an unsigned field (a seed) given a negative number
+            raise ValueError(f"{what} option '{key}': {value!r} is not an integer >= 0") from None
     return o
 
 
