@@ -415,7 +415,6 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
     skipped = collections.Counter()
     states = collections.Counter()
     methods = collections.Counter()
-    per_frame_ms = []
     track_call_ms = []  # wall time around each track call (what a caller of the System waits)
     ok_frames = []  # frame indices tracked (state OK)
     frame_records = []  # one per frame read: what tracking made of it
@@ -459,10 +458,9 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
             # mapping, loop closing or global BA changing the map meanwhile).
             "map_wait_ms": result.stage_ms.get("tracking.map_wait"),
             # This frame's stage times (the medians are in stage_ms_median).
-            "stage_ms": {k: round(v, 4) for k, v in result.stage_ms.items()},
+            "stage_ms": dict(result.stage_ms),
             # Why a frame was not tracked (the initialisation's or tracking's own words).
             "message": None if result.state == "OK" else (result.message or None)})
-        per_frame_ms.append(dict(result.stage_ms))
         if dynamic_on and result.rejected == "none":
             dynamic_frames.append({
                 "index": i, "stamp": frame.stamp, "labels_used": result.labels_used,
@@ -535,7 +533,7 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
         "loop_options": dict(opts.loop or {}),
         "localization": opts.localization,
         "map_file": map_io or None,
-        "stage_ms_median": _median_stages(per_frame_ms),
+        "stage_ms_median": _median_stages([f["stage_ms"] for f in frame_records]),
         # Wall time around the track call, frame loading excluded: the number a
         # benchmark can take the same way for another SLAM system.
         "track_call_ms_median": _median(track_call_ms),
@@ -543,10 +541,10 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
         "map_wait_ms": _spread([f["map_wait_ms"] for f in frame_records if f["map_wait_ms"] is not None]),
         # Per frame read: index, stamp, state, method, rejection, map index (one more
         # after each map given up), keypoints, tracked points, keyframe, track call ms,
-        # map wait ms.
+        # map wait ms, stage ms.
         "per_frame": frame_records,
         "wall_s": wall,
-        "fps": len(per_frame_ms) / wall if wall > 0 else None,
+        "fps": len(frame_records) / wall if wall > 0 else None,
         "masks": dict(masks.counts) if masks else None,
         "frames_with_labels": frames_with_labels,
         "masks_dropped_by_core": int(counters["masks_dropped"]),
