@@ -24,21 +24,23 @@ namespace dynaorb::node {
 
 namespace detail {
 
-// One field: read it if set; its name goes to `known`, "NAME=value" to `set`.
+// One field, the parameter ~ns/name: read it if set; `name` goes to `known`,
+// "name=value" to `set`.
 template <class T>
-void read_option_field(const ros::NodeHandle& pnh, const std::string& name, T& value, std::set<std::string>& known,
-                       std::vector<std::string>& set) {
+void read_option_field(const ros::NodeHandle& pnh, const std::string& ns, const std::string& name, T& value,
+                       std::set<std::string>& known, std::vector<std::string>& set) {
   known.insert(name);
+  const std::string param = ns + "/" + name;
   bool given = false;
   if constexpr (std::is_same_v<T, unsigned>) {  // seeds: an integer >= 0
     int v = 0;
-    given = read_param(pnh, name, v);
-    if (given && v < 0) throw InputError("~" + name + " must be an integer >= 0");
+    given = read_param(pnh, param, v);
+    if (given && v < 0) throw InputError("~" + param + " must be an integer >= 0");
     if (given) value = static_cast<unsigned>(v);
   } else {
     static_assert(std::is_same_v<T, int> || std::is_same_v<T, double> || std::is_same_v<T, bool>,
                   "an option field of a type the ROS parameters cannot hold");
-    given = read_param(pnh, name, value);
+    given = read_param(pnh, param, value);
   }
   if (given) {
     std::ostringstream s;
@@ -47,16 +49,17 @@ void read_option_field(const ros::NodeHandle& pnh, const std::string& name, T& v
   }
 }
 
+// The fields of `o`, named `group` + field (group: "" or "reloc/pnp/").
 template <class Options>
-void read_option_fields(const ros::NodeHandle& pnh, const std::string& prefix, Options& o,
+void read_option_fields(const ros::NodeHandle& pnh, const std::string& ns, const std::string& group, Options& o,
                         std::set<std::string>& known, std::vector<std::string>& set) {
   for_each_option_field<Options>([&](const char* field, auto member) {
     auto& value = o.*member;
     using T = std::remove_reference_t<decltype(value)>;
     if constexpr (has_option_fields_v<T>)
-      read_option_fields(pnh, prefix + field + "/", value, known, set);
+      read_option_fields(pnh, ns, group + field + "/", value, known, set);
     else
-      read_option_field(pnh, prefix + field, value, known, set);
+      read_option_field(pnh, ns, group + field, value, known, set);
   });
 }
 
@@ -72,20 +75,17 @@ std::vector<std::string> read_option_params(const ros::NodeHandle& pnh, const st
                                             const std::string& what) {
   std::set<std::string> known;
   std::vector<std::string> set;
-  detail::read_option_fields(pnh, ns + "/", o, known, set);
+  detail::read_option_fields(pnh, ns, "", o, known, set);
   // Every parameter the master holds under ~ns/ must be one of them.
   std::vector<std::string> names;
   pnh.getParamNames(names);
   const std::string root = pnh.resolveName(ns) + "/";
   for (const std::string& full : names) {
-    if (full.compare(0, root.size(), root) != 0) continue;
-    const std::string name = ns + "/" + full.substr(root.size());
-    if (known.count(name)) continue;
+    if (full.compare(0, root.size(), root) != 0 || known.count(full.substr(root.size()))) continue;
     std::string list;
-    for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k.substr(ns.size() + 1);
-    throw InputError("~" + name + " is not a " + what + " option (known: " + list + ")");
+    for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
+    throw InputError("~" + ns + "/" + full.substr(root.size()) + " is not a " + what + " option (known: " + list + ")");
   }
-  for (std::string& s : set) s.erase(0, ns.size() + 1);
   return set;
 }
 
