@@ -121,20 +121,43 @@ cv::Mat SemanticStage::candidates(const cv::Mat& labels) const {
 
 namespace {
 
+// The end of the run of pixels from x on that are all set (set) or all
+// unset (!set), 16 at a time where it can.
+int run_end(const unsigned char* m, int x, int n, bool set) {
+  const cv::v_uint8x16 zero = cv::v_setzero_u8();
+  for (; x + 16 <= n; x += 16) {
+    const cv::v_uint8x16 is_zero = cv::v_load(m + x) == zero;
+    if (set ? cv::v_check_any(is_zero) : !cv::v_check_all(is_zero)) break;
+  }
+  while (x < n && (m[x] != 0) == set) ++x;
+  return x;
+}
+
 // Each pixel's distance along its row to the nearest set pixel of `mask`
-// (rows of `box`, columns of `cols`), saturated at `cap`.
+// (rows of `box`, columns of `cols`), saturated at `cap`. Run by run: a set
+// run is 0, an unset one the cap with ramps up from the set pixels on
+// either side of it.
 template <typename T>
 cv::Mat row_distances(const cv::Mat& mask, const cv::Rect& box, const cv::Range& cols, T cap) {
   cv::Mat h(box.height, cols.size(), cv::DataType<T>::type);
+  const int n = h.cols;
   for (int y = 0; y < box.height; ++y) {
     const unsigned char* m = mask.ptr<unsigned char>(box.y + y) + cols.start;
     T* d = h.ptr<T>(y);
-    T run = cap;
-    for (int x = 0; x < h.cols; ++x) d[x] = run = m[x] ? T(0) : (run < cap ? T(run + 1) : cap);
-    run = cap;
-    for (int x = h.cols - 1; x >= 0; --x) {
-      run = m[x] ? T(0) : (run < cap ? T(run + 1) : cap);
-      if (run < d[x]) d[x] = run;
+    for (int x = 0; x < n;) {
+      const bool set = m[x] != 0;
+      const int end = run_end(m, x, n, set);
+      if (set) {
+        std::fill(d + x, d + end, T(0));
+      } else {
+        std::fill(d + x, d + end, cap);
+        const int ramp = std::min<int>(end - x, cap - 1);  // distances 1..cap-1 next to a set pixel
+        if (x > 0)
+          for (int k = 0; k < ramp; ++k) d[x + k] = static_cast<T>(k + 1);
+        if (end < n)
+          for (int k = 0; k < ramp; ++k) d[end - 1 - k] = std::min(d[end - 1 - k], static_cast<T>(k + 1));
+      }
+      x = end;
     }
   }
   return h;
