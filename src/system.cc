@@ -568,10 +568,16 @@ TrackResult System::track_rgbd(const cv::Mat& image, const cv::Mat& depth, doubl
   const double factor = *s.settings.camera.depth_map_factor;
   s.depth_m.release();  // a new buffer every frame: the dynamic filter keeps the last ones
   depth.convertTo(s.depth_m, CV_32F, 1.0 / factor);
-  // NaN, infinite, zero and negative depths are "no measurement": set to 0 and counted.
-  cv::Mat valid = (s.depth_m > 0.0f) & (s.depth_m < std::numeric_limits<float>::infinity());
-  r.invalid_depth_pixels = static_cast<int>(s.depth_m.total()) - cv::countNonZero(valid);
-  s.depth_m.setTo(0.0f, ~valid);
+  // NaN, infinite, zero and negative depths are "no measurement": set to 0
+  // and counted. 16-bit depth with a positive factor has only zeros of
+  // those, which convert to 0.
+  if (depth.depth() == CV_16U && factor > 0) {
+    r.invalid_depth_pixels = static_cast<int>(depth.total()) - cv::countNonZero(depth);
+  } else {
+    cv::Mat valid = (s.depth_m > 0.0f) & (s.depth_m < std::numeric_limits<float>::infinity());
+    r.invalid_depth_pixels = static_cast<int>(s.depth_m.total()) - cv::countNonZero(valid);
+    s.depth_m.setTo(0.0f, ~valid);
+  }
   s.accept_mask(mask, image.size(), r);
   s.accept_labels(labels, image.size(), r);
   return s.finish(r, stamp, start);

@@ -51,6 +51,11 @@ TEST(System, InvalidDepthIsCountedAndMasksChecked) {
   r = metres.track_rgbd(rgb, depth, 2.0, cv::Mat(100, 100, CV_8UC1));
   EXPECT_FALSE(r.mask_used);
   EXPECT_EQ(metres.counters().masks_dropped, 1);
+  // 16-bit depth: zeros are the invalid pixels.
+  cv::Mat raw(480, 640, CV_16UC1, cv::Scalar(5000));
+  raw(cv::Rect(0, 0, 10, 10)).setTo(0);
+  raw(cv::Rect(30, 30, 5, 4)).setTo(0);
+  EXPECT_EQ(sys.track_rgbd(rgb, raw, 1.0).invalid_depth_pixels, 120);
 }
 
 }  // namespace
