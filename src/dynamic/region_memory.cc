@@ -2,6 +2,7 @@
 #include "dynaorb/dynamic/region_memory.h"
 
 #include <algorithm>
+#include <opencv2/core/hal/intrin.hpp>
 
 namespace dynaorb::dynamic {
 
@@ -15,24 +16,50 @@ bool RegionMemory::holds(long previous_id, const cv::Size& size) const {
   return frame_ >= 0 && previous_id == frame_ && age_.size() == size;
 }
 
+namespace {
+
+// The end of the run of pixels from x on with the region id id[x] (4 at a
+// time where it can).
+int run_end(const int* id, int x, int n) {
+  const int r = id[x];
+  const cv::v_int32x4 vr = cv::v_setall_s32(r);
+  ++x;
+  for (; x + 4 <= n; x += 4)
+    if (!cv::v_check_all(cv::v_load(id + x) == vr)) break;
+  while (x < n && id[x] == r) ++x;
+  return x;
+}
+
+}  // namespace
+
 RegionInheritance RegionMemory::inherit(const CandidateRegions& regions, bool usable) const {
   RegionInheritance in;
   in.dynamic_pixels.assign(regions.count + 1, 0);
   in.static_pixels.assign(regions.count + 1, 0);
   in.least_age.assign(regions.count + 1, 255);
   if (!usable || age_.empty() || age_.size() != regions.ids.size()) return in;
+  const int n = regions.ids.cols;
   for (int y = 0; y < regions.ids.rows; ++y) {
     const int* id = regions.ids.ptr<int>(y);
     const unsigned char* pa = age_.ptr<unsigned char>(y);
     const unsigned char* ps = static_.ptr<unsigned char>(y);
-    for (int x = 0; x < regions.ids.cols; ++x)
-      if (id[x] > 0) {
-        if (pa[x] != 0) {
-          ++in.dynamic_pixels[id[x]];
-          in.least_age[id[x]] = std::min<int>(in.least_age[id[x]], pa[x]);
+    // Run by run of one region id: the region's counts change once per run.
+    for (int x = 0; x < n;) {
+      const int r = id[x];
+      const int end = run_end(id, x, n);
+      if (r > 0) {
+        int dynamic = 0, statics = 0, least = in.least_age[r];
+        for (int i = x; i < end; ++i) {
+          dynamic += pa[i] != 0;
+          statics += ps[i] != 0;
+          if (pa[i] != 0 && pa[i] < least) least = pa[i];
         }
-        in.static_pixels[id[x]] += ps[x] != 0;
+        in.dynamic_pixels[r] += dynamic;
+        in.static_pixels[r] += statics;
+        in.least_age[r] = least;
       }
+      x = end;
+    }
   }
   return in;
 }
@@ -41,17 +68,22 @@ cv::Mat RegionMemory::remember(long frame_id, const CandidateRegions& regions,
                                const std::vector<unsigned char>& region_age) {
   cv::Mat age(regions.ids.size(), CV_8UC1, cv::Scalar(0));
   cv::Mat stat(regions.ids.size(), CV_8UC1, cv::Scalar(0));
+  const int n = regions.ids.cols;
   for (int y = 0; y < regions.ids.rows; ++y) {
     const int* id = regions.ids.ptr<int>(y);
     unsigned char* da = age.ptr<unsigned char>(y);
     unsigned char* ds = stat.ptr<unsigned char>(y);
-    for (int x = 0; x < regions.ids.cols; ++x)
-      if (id[x] > 0) {
-        if (region_age[id[x]] != 0)
-          da[x] = region_age[id[x]];
+    for (int x = 0; x < n;) {
+      const int r = id[x];
+      const int end = run_end(id, x, n);
+      if (r > 0) {
+        if (region_age[r] != 0)
+          std::fill(da + x, da + end, region_age[r]);
         else
-          ds[x] = 255;
+          std::fill(ds + x, ds + end, static_cast<unsigned char>(255));
       }
+      x = end;
+    }
   }
   frame_ = frame_id;
   age_ = age;
