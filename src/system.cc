@@ -183,8 +183,7 @@ struct System::Impl {
       loop::LoopCloser* lc = loop_closer.get();
       mapper->set_keyframe_sink([lc](std::shared_ptr<map::KeyFrame> kf) { lc->insert_keyframe(std::move(kf)); });
     }
-    tracking::TrackerOptions t = options.tracker;
-    if (settings.camera.fps > 0) t.max_frames = static_cast<int>(std::lround(settings.camera.fps));
+    const tracking::TrackerOptions t = options.tracker.with_camera_fps(settings.camera.fps);
     tracker = std::make_unique<tracking::Tracker>(map, *mapper, sensor, t, options.vocabulary, database.get());
     tracker->set_localization_mode(options.localization_only);
     if (dynamic_on()) {

@@ -37,7 +37,7 @@ std::shared_ptr<MapPoint> Tracker::new_point(KeyFrame& kf, Frame& f, int i) {
 
 Tracker::Tracker(map::Map& map, mapping::LocalMapper& mapper, Sensor sensor, const TrackerOptions& options,
                  std::shared_ptr<const vocab::Vocabulary> vocabulary, const place::KeyFrameDatabase* database)
-    : map_(map), mapper_(mapper), sensor_(sensor), o_(options), vocabulary_(std::move(vocabulary)),
+    : map_(map), mapper_(mapper), sensor_(sensor), o_(options.with_camera_fps(0)), vocabulary_(std::move(vocabulary)),
       database_(vocabulary_ ? database : nullptr) {}
 
 void Tracker::reset() {

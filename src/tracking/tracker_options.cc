@@ -42,6 +42,12 @@ void ratio(const std::string& name, double v) {
 
 }  // namespace
 
+TrackerOptions TrackerOptions::with_camera_fps(double fps) const {
+  TrackerOptions o = *this;
+  if (o.max_frames < 0) o.max_frames = fps > 0 && std::isfinite(fps) ? static_cast<int>(std::lround(fps)) : 30;
+  return o;
+}
+
 void TrackerOptions::validate() const {
   for (const auto& [name, v] : {std::pair<const char*, int>{"min_init_keypoints", min_init_keypoints},
                                 {"min_init_depth_points", min_init_depth_points},
@@ -52,7 +58,6 @@ void TrackerOptions::validate() const {
                                 {"close_tracked_max", close_tracked_max},
                                 {"close_untracked_min", close_untracked_min},
                                 {"new_keyframe_close_points", new_keyframe_close_points},
-                                {"max_frames", max_frames},
                                 {"min_frames", min_frames},
                                 {"reset_if_lost_below_keyframes", reset_if_lost_below_keyframes},
                                 {"reset_after_lost", reset_after_lost},
@@ -70,6 +75,7 @@ void TrackerOptions::validate() const {
                                 {"reloc.narrow_max_distance", reloc.narrow_max_distance},
                                 {"reloc.local_map_inliers", reloc.local_map_inliers}})
     at_least(name, v, 0);
+  at_least("max_frames", max_frames, -1);  // -1: Camera.fps
   at_least("max_local_keyframes", max_local_keyframes, 1);
   at_least("mono_init_feature_factor", mono_init_feature_factor, 1);
   for (const auto& [name, v] : {std::pair<const char*, double>{"motion_th_stereo", motion_th_stereo},

@@ -106,7 +106,10 @@ struct TrackerOptions {
   int close_tracked_max = 100;        // "need close points" when fewer tracked close
   int close_untracked_min = 70;       //   and this many untracked close ones
   int new_keyframe_close_points = 100;  // new keyframe points: all close ones, at least this many
-  int max_frames = 30;                // keyframe at least every max_frames (= fps)
+  // A keyframe at least every max_frames frames (ORB-SLAM2: the camera's
+  // fps). -1: the settings' Camera.fps (System), 30 where none is given;
+  // a value set here wins over Camera.fps.
+  int max_frames = -1;
   int min_frames = 0;
   // A map of at most this many keyframes is dropped, and the next frame
   // initialises a new one, once tracking has been lost for reset_after_lost
@@ -217,6 +220,9 @@ struct TrackerOptions {
   // a PnP probability outside (0, 1), fewer than 4 PnP or 8 two-view points.
   // System calls it on construction.
   void validate() const;
+  // These options with max_frames = -1 resolved: round(fps) when fps > 0,
+  // else 30. Tracker resolves its own copy (fps unknown: 30).
+  TrackerOptions with_camera_fps(double fps) const;
 };
 
 // Its fields by name (dynaorb/core/option_fields.h).

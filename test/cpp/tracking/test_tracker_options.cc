@@ -33,6 +33,22 @@ TEST(TrackerOptions, ZeroIsAcceptedWhereItMeansOff) {
   EXPECT_EQ(refusal([](TrackerOptions& o) { o.two_view.homography_sample = 8; }), "");  // ORB-SLAM2's code
 }
 
+// max_frames: -1 (the default) is the camera's fps, as ORB-SLAM2's
+// mMaxFrames; a value the user sets is kept.
+TEST(TrackerOptions, MaxFramesIsTheCameraFpsUnlessSet) {
+  EXPECT_EQ(TrackerOptions().max_frames, -1);
+  EXPECT_EQ(TrackerOptions().with_camera_fps(10).max_frames, 10);
+  EXPECT_EQ(TrackerOptions().with_camera_fps(20.4).max_frames, 20);
+  EXPECT_EQ(TrackerOptions().with_camera_fps(0).max_frames, 30);  // no fps known
+  EXPECT_EQ(TrackerOptions().with_camera_fps(std::numeric_limits<double>::quiet_NaN()).max_frames, 30);
+  TrackerOptions set;
+  set.max_frames = 7;
+  EXPECT_EQ(set.with_camera_fps(10).max_frames, 7);
+  set.max_frames = 0;  // a keyframe whenever local mapping is idle
+  EXPECT_EQ(set.with_camera_fps(10).max_frames, 0);
+  EXPECT_NE(refusal([](TrackerOptions& o) { o.max_frames = -2; }).find("'max_frames' is -2"), std::string::npos);
+}
+
 TEST(TrackerOptions, BadValuesAreRefusedByName) {
   const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
   struct Case {
