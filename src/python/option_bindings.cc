@@ -39,8 +39,8 @@ void bind_options(py::module_& m) {
       "The monocular initialisation's two-view reconstruction (dynaorb/tracking/two_view_initializer.h).");
   bind_option_class<tracking::TrackerOptions>(m, "TrackerOptions",
                                               "The tracking thread's options (dynaorb/tracking/tracker.h; defaults\n"
-                                              "are ORB-SLAM2's). max_frames -1 (the default) takes the settings' Camera.fps; "
-                                              "a value set here wins.")
+                                              "are ORB-SLAM2's). max_frames -1 (the default) takes the settings'\n"
+                                              "Camera.fps; a value set here wins.")
       .def("validate", &tracking::TrackerOptions::validate, "InputError naming a value out of range.");
 
   bind_option_class<mapping::LocalMapperOptions>(

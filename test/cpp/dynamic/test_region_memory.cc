@@ -26,7 +26,8 @@ TEST(RegionMemory, RemembersAndInheritsPixelByPixel) {
     const cv::Size size(rng.uniform(1, 300), rng.uniform(1, 120));
     const CandidateRegions first = candidate_regions(random_blobs(rng, size), cv::Mat(), false);
     std::vector<unsigned char> ages(first.count + 1, 0);
-    for (int r = 1; r <= first.count; ++r) ages[r] = rng.uniform(0, 3) ? static_cast<unsigned char>(rng.uniform(0, 256)) : 0;
+    for (int r = 1; r <= first.count; ++r)  // a third static, the rest dynamic of any age
+      ages[r] = rng.uniform(0, 3) ? static_cast<unsigned char>(rng.uniform(1, 256)) : 0;
     RegionMemory memory;
     const cv::Mat dynamic = memory.remember(5, first, ages);
     ASSERT_TRUE(memory.holds(5, size));
