@@ -11,6 +11,8 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
+#include "id_runs.h"
+
 namespace dynaorb::dynamic {
 
 namespace {
@@ -31,7 +33,7 @@ int components_with_boxes(const cv::Mat& mask, cv::Mat& comp, cv::Mat& stats) {
     for (int x = 0; x < comp.cols;) {
       const int l = c[x];
       const int start = x;
-      while (x < comp.cols && c[x] == l) ++x;
+      x = detail::id_run_end(c, x, comp.cols);
       area[l] += x - start;
       x0[l] = std::min(x0[l], start);
       x1[l] = std::max(x1[l], x - 1);

@@ -2,7 +2,8 @@
 #include "dynaorb/dynamic/region_memory.h"
 
 #include <algorithm>
-#include <opencv2/core/hal/intrin.hpp>
+
+#include "id_runs.h"
 
 namespace dynaorb::dynamic {
 
@@ -15,22 +16,6 @@ void RegionMemory::reset() {
 bool RegionMemory::holds(long previous_id, const cv::Size& size) const {
   return frame_ >= 0 && previous_id == frame_ && age_.size() == size;
 }
-
-namespace {
-
-// The end of the run of pixels from x on with the region id id[x] (4 at a
-// time where it can).
-int run_end(const int* id, int x, int n) {
-  const int r = id[x];
-  const cv::v_int32x4 vr = cv::v_setall_s32(r);
-  ++x;
-  for (; x + 4 <= n; x += 4)
-    if (!cv::v_check_all(cv::v_load(id + x) == vr)) break;
-  while (x < n && id[x] == r) ++x;
-  return x;
-}
-
-}  // namespace
 
 RegionInheritance RegionMemory::inherit(const CandidateRegions& regions, bool usable) const {
   RegionInheritance in;
@@ -46,7 +31,7 @@ RegionInheritance RegionMemory::inherit(const CandidateRegions& regions, bool us
     // Run by run of one region id: the region's counts change once per run.
     for (int x = 0; x < n;) {
       const int r = id[x];
-      const int end = run_end(id, x, n);
+      const int end = detail::id_run_end(id, x, n);
       if (r > 0) {
         int dynamic = 0, statics = 0, least = in.least_age[r];
         for (int i = x; i < end; ++i) {
@@ -75,7 +60,7 @@ cv::Mat RegionMemory::remember(long frame_id, const CandidateRegions& regions,
     unsigned char* ds = stat.ptr<unsigned char>(y);
     for (int x = 0; x < n;) {
       const int r = id[x];
-      const int end = run_end(id, x, n);
+      const int end = detail::id_run_end(id, x, n);
       if (r > 0) {
         if (region_age[r] != 0)
           std::fill(da + x, da + end, region_age[r]);
