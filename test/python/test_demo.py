@@ -19,7 +19,7 @@ def test_demo_shows_the_front_end_keeping_movers_out(tmp_path):
     assert by_name["dynamic scene, `full` front end"].ate_m <= 1.5 * static
     assert by_name["dynamic scene, ground-truth masks"].ate_m <= 1.5 * static
     assert 0.2 <= by_name["dynamic scene, `full` front end"].marked_moving <= 0.6
-    assert by_name["static scene"].marked_moving is None  # no front end, no column
+    assert by_name["static scene"].marked_moving is None  # no front end: its column stays empty
     table = format_demo(runs, "header").splitlines()
     assert table[0] == "header" and len(table) == 3 + len(runs)
     full_line = next(line for line in table if line.startswith("dynamic scene, `full`"))

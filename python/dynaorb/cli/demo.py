@@ -6,7 +6,7 @@ each; on the dynamic one also with the `full` dynamic-object front end (fed
 the sequence's label images, as a segmentation network would: it decides
 itself which labelled objects move) and with the ground-truth dynamic masks;
 then prints a table of tracked frames, ATE, time per frame and the share of
-keypoints the front end dropped, side by side.
+the image the front end marked moving, side by side.
 """
 from __future__ import annotations
 
