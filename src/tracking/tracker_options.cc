@@ -90,8 +90,7 @@ void TrackerOptions::validate() const {
   c.at_least("reloc.pnp.min_inliers", reloc.pnp.min_inliers, 4);
   c.at_least("reloc.pnp.max_iterations", reloc.pnp.max_iterations, 1);
   c.positive("reloc.pnp.chi2", reloc.pnp.chi2);
-  if (!std::isfinite(new_map_after_lost_s) || new_map_after_lost_s < 0)
-    c.fail("new_map_after_lost_s", new_map_after_lost_s, "a finite number of seconds >= 0 (0: never)");
+  c.non_negative("new_map_after_lost_s", new_map_after_lost_s, "never");  // seconds
   if (!std::isfinite(stereo_right_budget_max_factor) || stereo_right_budget_max_factor < 1)
     c.fail("stereo_right_budget_max_factor", stereo_right_budget_max_factor,
            "a finite number >= 1 (1: the right image gets nFeatures, as ORB-SLAM2)");
