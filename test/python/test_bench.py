@@ -261,6 +261,55 @@ def test_report_renders_from_results(tmp_path):
     assert "| 3.00 (over 10 % vs 100 % of the frames: not comparable) |" in text
 
 
+def _tum(path: pathlib.Path, stamps, xyz) -> str:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("".join(f"{t:.6f} {x:.6f} {y:.6f} {z:.6f} 0 0 0 1\n" for t, (x, y, z) in zip(stamps, xyz)))
+    return str(path)
+
+
+def test_ate_over_the_frames_both_tracked(tmp_path):
+    import numpy as np
+
+    from dynaorb.bench import common_frames
+
+    # Ground truth: 30 poses on a helix. Ours tracks all 30 but frames 0-9 are 0.5 m off;
+    # the peer tracks frames 10-29 only. Over frames 10-29 ours is 1 cm off, the peer 2 cm
+    # (alternating up / down, so no rigid alignment removes it).
+    t = 100.0 + 0.05 * np.arange(30)
+    a = np.linspace(0, 2, 30)
+    gt = np.stack([np.cos(a), np.sin(a), 0.2 * a], axis=1)
+    sign = np.where(np.arange(30) % 2 == 0, 1.0, -1.0)[:, None]
+    ours = gt + sign * [0, 0, 0.01]
+    ours[:10] += [0.5, 0, 0]
+    theirs = (gt + sign * [0, 0, 0.02])[10:]
+    runs = tmp_path / "runs"
+    rec = {"sensor": "stereo", "align": "se3", "run": 0}
+    mine = {**rec, "case": "s:stereo:off", "out": str(runs / "ours" / "0"),
+            "trajectory": _tum(runs / "ours" / "0" / "trajectory.tum", t, ours)}
+    _tum(runs / "ours" / "0" / "groundtruth.tum", t, gt)
+    peer = {**rec, "case": "s:stereo:orbslam3", "trajectory": _tum(runs / "peer" / "0" / "trajectory.tum", t[10:], theirs)}
+    c = common_frames.compare([mine], [peer])
+    assert c["frames"] == 20 and c["pairs"] == 1
+    assert c["ours"] == pytest.approx(0.01, abs=0.002) and c["theirs"] == pytest.approx(0.02, abs=0.002)
+    assert c["ratio"] == pytest.approx(0.5, abs=0.1)
+    # The records moved with their bench folder: found under it by their runs/... part.
+    moved = {**mine, "out": "/elsewhere/runs/ours/0", "trajectory": "/elsewhere/runs/ours/0/trajectory.tum"}
+    assert common_frames.compare([moved], [peer]) is None
+    assert common_frames.compare([moved], [peer], tmp_path)["frames"] == 20
+    # Too few frames in common, or a missing trajectory: no figure.
+    short = {**peer, "trajectory": _tum(runs / "peer" / "1" / "trajectory.tum", t[25:], theirs[15:])}
+    assert common_frames.compare([mine], [short]) is None
+    assert common_frames.compare([mine], [{**peer, "trajectory": "/nonexistent"}]) is None
+    # In the pair table, beside the full-trajectory ratio (whose 0.5 m frames ours alone tracked).
+    rows = [{**_record("s:stereo:off", "dynaorb", "off", 0.3, 40.0), **mine},
+            {**_record("s:stereo:orbslam3", "orbslam3", "off", 0.02, 60.0), **peer}]
+    ps = report.pairs(report.aggregate(rows), "off", rows)
+    c = ps[0]["common"]
+    assert c["frames"] == 20 and c["ratio"] == pytest.approx(0.5, abs=0.1)
+    cell = f"| {c['ratio']:.2f} ({c['ours']:.4f} / {c['theirs']:.4f} m, 20 frames) |"
+    assert "| 15.00 |" in "\n".join(report.pair_table(ps)) and cell in "\n".join(report.pair_table(ps))
+
+
 def test_stage_table_gives_the_filter_worker_apart(tmp_path):
     def full(run, corners, stereo):
         worker = {"corners_ahead": corners, **({"stereo_ahead": stereo} if stereo is not None else {})}

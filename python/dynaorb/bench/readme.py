@@ -23,11 +23,12 @@ def summary(results: dict, source: str) -> str:
              f"{results.get('mapping')}; ms/frame is the wall time around the track call for both systems "
              "(medians over the runs).", ""]
     peer = results.get("peer") or {}
-    ps = report.pairs(rows)
+    bench_dir = pathlib.Path(source)
+    ps = report.pairs(rows, "off", results["records"], bench_dir)
     if ps:
         lines += ["dynaorb (`off`) against ORB-SLAM3 (pyorbslam3, same images, calibration, ORB settings and "
                   "vocabulary):", "", *report.pair_table(ps), ""]
-        full = report.pairs(rows, "full")
+        full = report.pairs(rows, "full", results["records"], bench_dir)
         if full:
             lines += ["dynaorb's `full` dynamic preset against ORB-SLAM3 in its plain mode (issue 8's speed "
                       "target: ms ours/theirs <= 1 with ATE no worse; the network, where one runs, is on its "

@@ -18,6 +18,8 @@ import statistics
 
 import numpy as np
 
+from dynaorb.bench import common_frames
+
 STAGES = ("preprocess", "dynamic", "extract", "stereo_matching", "tracking")
 OVERLAPPED = "extract_overlapped"
 
@@ -78,9 +80,15 @@ def _worker_ms(runs: list[dict]) -> dict:
     return {k: statistics.median(v) for k, v in parts.items()}
 
 
-def pairs(rows: list[dict], preset: str = "off") -> list[dict]:
-    """dynaorb (in `preset`) against ORB-SLAM3 (plain) on each sequence both ran: ratios ours / theirs."""
+def pairs(rows: list[dict], preset: str = "off", records: list[dict] | None = None,
+          bench_dir: pathlib.Path | None = None) -> list[dict]:
+    """dynaorb (in `preset`) against ORB-SLAM3 (plain) on each sequence both ran: ratios ours / theirs.
+    With the per-run records, each pair also gets "common": both ATEs over the frames both systems
+    tracked (common_frames.compare; their trajectory files are looked up as recorded or under bench_dir)."""
     ours = {(r["sequence"], r["sensor"]): r for r in rows if r["system"] == "dynaorb" and r["preset"] == preset}
+    runs = collections.defaultdict(list)
+    for rec in records or []:
+        runs[rec["case"]].append(rec)
     out = []
     for r in rows:
         if r["system"] != "orbslam3":
@@ -88,9 +96,10 @@ def pairs(rows: list[dict], preset: str = "off") -> list[dict]:
         o = ours.get((r["sequence"], r["sensor"]))
         if o is None:
             continue
+        common = common_frames.compare(runs[o["case"]], runs[r["case"]], bench_dir) if records else None
         out.append({"sequence": r["sequence"], "sensor": r["sensor"], "ours": o, "theirs": r,
                     "ate_ratio": _ratio(o["ate_rmse"], r["ate_rmse"]),
-                    "ms_ratio": _ratio(o["track_call_ms_median"], r["track_call_ms_median"])})
+                    "ms_ratio": _ratio(o["track_call_ms_median"], r["track_call_ms_median"]), "common": common})
     return out
 
 
@@ -162,14 +171,23 @@ def _ate_ratio_cell(p: dict) -> str:
     return cell
 
 
+def _common_cell(p: dict) -> str:
+    c = p.get("common")
+    if not c or c["ratio"] is None:
+        return "n/a"
+    return f"{c['ratio']:.2f} ({c['ours']:.4f} / {c['theirs']:.4f} m, {c['frames']} frames)"
+
+
 def pair_table(ps: list[dict]) -> list[str]:
     return markdown_table(
         ["sequence", "sensor", "ATE dynaorb [m]", "ATE ORB-SLAM3 [m]", "ATE ours/theirs", "ms/frame dynaorb",
-         "ms/frame ORB-SLAM3", "ms ours/theirs", "tracked dynaorb", "tracked ORB-SLAM3"],
+         "ms/frame ORB-SLAM3", "ms ours/theirs", "tracked dynaorb", "tracked ORB-SLAM3",
+         "ATE ours/theirs over the frames both tracked"],
         ([p["sequence"], p["sensor"], _f(p["ours"]["ate_rmse"], "{:.4f}"), _f(p["theirs"]["ate_rmse"], "{:.4f}"),
           _ate_ratio_cell(p), _f(p["ours"]["track_call_ms_median"], "{:.1f}"),
           _f(p["theirs"]["track_call_ms_median"], "{:.1f}"), _f(p["ms_ratio"], "{:.2f}"),
-          _pct(p["ours"]["tracked_fraction"]), _pct(p["theirs"]["tracked_fraction"])] for p in ps))
+          _pct(p["ours"]["tracked_fraction"]), _pct(p["theirs"]["tracked_fraction"]), _common_cell(p)]
+         for p in ps))
 
 
 def _labels_cell(r: dict) -> str:
@@ -342,7 +360,10 @@ def render(results: dict, out: pathlib.Path, plots: dict | None = None, stages_p
              "decides on: *regions_ahead (worker)*, not in the sum.",
              "- fps: frames over the whole loop's wall time (image loading included). Peak MB: the run's process "
              "(VmHWM of its own address space), for ORB-SLAM3 the worker's python process.",
-             "- ATE: evo, SE3 alignment (Sim3 for monocular), RMSE of the position error; RPE per frame.",
+             "- ATE: evo, SE3 alignment (Sim3 for monocular), RMSE of the position error; RPE per frame. "
+             "*ATE ours/theirs over the frames both tracked*: run r of each system cut to the frames both "
+             "trajectories hold, each cut aligned and evaluated on its own, medians over the run pairs (where "
+             "one system keeps a map the other loses, the full-trajectory ATEs cover different frames).",
              "- Semantic stages read the synthetic sequences' label images (PASCAL VOC ids as a network would "
              "output, parked car included). Real sequences have none: there the segmentation network runs "
              "asynchronously on its own thread (masks of older frames propagated by optical flow, as on a live "
@@ -362,7 +383,7 @@ def render(results: dict, out: pathlib.Path, plots: dict | None = None, stages_p
     if failed:
         lines += ["## Failed runs", ""] + [f"- {r['case']}: {e}" for r in failed for e in r["errors"]] + [""]
     for preset in ("off", "full"):
-        ps = pairs(rows, preset)
+        ps = pairs(rows, preset, results["records"], out)
         if ps:
             lines += [f"## dynaorb ({preset}) against ORB-SLAM3 (plain)", "", *pair_table(ps), ""]
     lines += ["## Every case", "", *case_table(rows), ""]

@@ -1,0 +1,104 @@
+"""ATE of dynaorb and of ORB-SLAM3 over the frames both of them tracked.
+
+Where the two systems track different stretches of a sequence (one keeps
+its first monocular map, the other loses it and starts a new one later;
+one is lost on frames the other tracks), their ATEs are over different
+frames and their ratio says little. Here run r of ours and run r of the
+peer are cut to the stamps both trajectories hold, and each cut is
+evaluated on its own against the run's ground truth, with the alignment of
+the full evaluation (Sim3 monocular, SE3 otherwise). The medians over the
+run pairs go into the pair table beside the full-trajectory ratio.
+"""
+from __future__ import annotations
+
+import pathlib
+import statistics
+
+import numpy as np
+
+# Stamps of one frame in the two trajectories differ by the writers'
+# rounding only; frames are >= 10 ms apart in every dataset here.
+STAMP_TOLERANCE_S = 1e-3
+# Fewer common poses than this: no common-frame ATE (a Sim3 fit on a
+# handful of poses says nothing).
+MIN_COMMON_POSES = 10
+
+
+def _existing(path: str | None, out: pathlib.Path | None) -> pathlib.Path | None:
+    """path as recorded, or the same file under the bench folder `out` (a results.json moved with its runs)."""
+    if not path:
+        return None
+    p = pathlib.Path(path)
+    if p.is_file():
+        return p
+    if out is not None and "runs" in p.parts:
+        q = pathlib.Path(out, *p.parts[p.parts.index("runs"):])
+        if q.is_file():
+            return q
+    return None
+
+
+def _held(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Mask over the stamps a: those that b also holds (within STAMP_TOLERANCE_S)."""
+    if len(a) == 0 or len(b) == 0:
+        return np.zeros(len(a), dtype=bool)
+    b = np.sort(b)
+    i = np.searchsorted(b, a)
+    after = np.abs(b[np.minimum(i, len(b) - 1)] - a)
+    before = np.abs(b[np.maximum(i - 1, 0)] - a)
+    return np.minimum(after, before) <= STAMP_TOLERANCE_S
+
+
+def _cut(traj, stamps: np.ndarray):
+    """The poses of an evo trajectory at the given stamps."""
+    from evo.core.trajectory import PoseTrajectory3D
+
+    t = np.asarray(traj.timestamps)
+    keep = _held(t, stamps)
+    return PoseTrajectory3D(poses_se3=[p for p, k in zip(traj.poses_se3, keep) if k], timestamps=t[keep])
+
+
+def run_pair(ours: dict, theirs: dict, out: pathlib.Path | None = None) -> dict | None:
+    """{"frames", "ours", "theirs"}: both runs' ATE RMSE [m] over the frames both tracked; None when
+    a trajectory or the ground truth is missing or they share fewer than MIN_COMMON_POSES poses."""
+    from dynaorb.evaluation import evaluate, load_trajectory
+
+    ours_file, theirs_file = _existing(ours.get("trajectory"), out), _existing(theirs.get("trajectory"), out)
+    gt_file = _existing(str(pathlib.Path(ours.get("out") or "", "groundtruth.tum")), out)
+    if not (ours_file and theirs_file and gt_file):
+        return None
+    try:
+        a, b, gt = load_trajectory(ours_file), load_trajectory(theirs_file), load_trajectory(gt_file)
+    except Exception:  # an unreadable or empty trajectory: no common-frame figure
+        return None
+    ta = np.asarray(a.timestamps)
+    stamps = ta[_held(ta, np.asarray(b.timestamps))]
+    if len(stamps) < MIN_COMMON_POSES:
+        return None
+    align = ours.get("align") or ("sim3" if ours.get("sensor") == "mono" else "se3")
+    try:
+        ate_a = evaluate(gt, _cut(a, stamps), align=align, rpe_delta=None).ate["rmse"]
+        ate_b = evaluate(gt, _cut(b, stamps), align=align, rpe_delta=None).ate["rmse"]
+    except ValueError:  # too few poses match the ground truth
+        return None
+    return {"frames": int(len(stamps)), "ours": float(ate_a), "theirs": float(ate_b)}
+
+
+def compare(ours_runs: list[dict], theirs_runs: list[dict], out: pathlib.Path | None = None) -> dict | None:
+    """Medians over the run pairs (run r with run r) of run_pair: {"pairs", "frames", "ours", "theirs",
+    "ratio"}; None when no pair has a common-frame ATE."""
+    theirs_by_run = {r.get("run"): r for r in theirs_runs if not r.get("error")}
+    results = []
+    for r in ours_runs:
+        t = theirs_by_run.get(r.get("run"))
+        if r.get("error") or t is None:
+            continue
+        c = run_pair(r, t, out)
+        if c is not None:
+            results.append(c)
+    if not results:
+        return None
+    ours_med = statistics.median(c["ours"] for c in results)
+    theirs_med = statistics.median(c["theirs"] for c in results)
+    return {"pairs": len(results), "frames": int(statistics.median(c["frames"] for c in results)),
+            "ours": ours_med, "theirs": theirs_med, "ratio": ours_med / theirs_med if theirs_med > 0 else None}
