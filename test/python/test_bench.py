@@ -300,6 +300,9 @@ def test_ate_over_the_frames_both_tracked(tmp_path):
     short = {**peer, "trajectory": _tum(runs / "peer" / "1" / "trajectory.tum", t[25:], theirs[15:])}
     assert common_frames.compare([mine], [short]) is None
     assert common_frames.compare([mine], [{**peer, "trajectory": "/nonexistent"}]) is None
+    (runs / "peer" / "2").mkdir()
+    (runs / "peer" / "2" / "trajectory.tum").write_text("")  # a run that tracked nothing
+    assert common_frames.compare([mine], [{**peer, "trajectory": str(runs / "peer" / "2" / "trajectory.tum")}]) is None
     # In the pair table, beside the full-trajectory ratio (whose 0.5 m frames ours alone tracked).
     rows = [{**_record("s:stereo:off", "dynaorb", "off", 0.3, 40.0), **mine},
             {**_record("s:stereo:orbslam3", "orbslam3", "off", 0.02, 60.0), **peer}]

@@ -61,6 +61,8 @@ def _cut(traj, stamps: np.ndarray):
 def run_pair(ours: dict, theirs: dict, out: pathlib.Path | None = None) -> dict | None:
     """{"frames", "ours", "theirs"}: both runs' ATE RMSE [m] over the frames both tracked; None when
     a trajectory or the ground truth is missing or they share fewer than MIN_COMMON_POSES poses."""
+    from evo.tools.file_interface import FileInterfaceException
+
     from dynaorb.evaluation import evaluate, load_trajectory
 
     ours_file, theirs_file = _existing(ours.get("trajectory"), out), _existing(theirs.get("trajectory"), out)
@@ -69,7 +71,7 @@ def run_pair(ours: dict, theirs: dict, out: pathlib.Path | None = None) -> dict 
         return None
     try:
         a, b, gt = load_trajectory(ours_file), load_trajectory(theirs_file), load_trajectory(gt_file)
-    except Exception:  # an unreadable or empty trajectory: no common-frame figure
+    except (ValueError, OSError, FileInterfaceException):  # unreadable or empty: no common-frame figure
         return None
     ta = np.asarray(a.timestamps)
     stamps = ta[_held(ta, np.asarray(b.timestamps))]
