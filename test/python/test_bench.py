@@ -300,6 +300,7 @@ def test_ate_over_the_frames_both_tracked(tmp_path):
     short = {**peer, "trajectory": _tum(runs / "peer" / "1" / "trajectory.tum", t[25:], theirs[15:])}
     assert common_frames.compare([mine], [short]) is None
     assert common_frames.compare([mine], [{**peer, "trajectory": "/nonexistent"}]) is None
+    assert common_frames.compare([{**mine, "align": None}], [peer]) is None  # our run had no ATE
     (runs / "peer" / "2").mkdir()
     (runs / "peer" / "2" / "trajectory.tum").write_text("")  # a run that tracked nothing
     assert common_frames.compare([mine], [{**peer, "trajectory": str(runs / "peer" / "2" / "trajectory.tum")}]) is None

@@ -59,15 +59,17 @@ def _cut(traj, stamps: np.ndarray):
 
 
 def run_pair(ours: dict, theirs: dict, out: pathlib.Path | None = None) -> dict | None:
-    """{"frames", "ours", "theirs"}: both runs' ATE RMSE [m] over the frames both tracked; None when
-    a trajectory or the ground truth is missing or they share fewer than MIN_COMMON_POSES poses."""
+    """{"frames", "ours", "theirs"}: both runs' ATE RMSE [m] over the frames both tracked, aligned as
+    our run's full evaluation was; None when a trajectory, the ground truth or our run's ATE is missing
+    or they share fewer than MIN_COMMON_POSES poses."""
     from evo.tools.file_interface import FileInterfaceException
 
     from dynaorb.evaluation import evaluate, load_trajectory
 
     ours_file, theirs_file = _existing(ours.get("trajectory"), out), _existing(theirs.get("trajectory"), out)
     gt_file = _existing(str(pathlib.Path(ours.get("out") or "", "groundtruth.tum")), out)
-    if not (ours_file and theirs_file and gt_file):
+    align = ours.get("align")  # the full evaluation's: sim3 monocular, se3 otherwise; none without an ATE
+    if not (ours_file and theirs_file and gt_file and align):
         return None
     try:
         a, b, gt = load_trajectory(ours_file), load_trajectory(theirs_file), load_trajectory(gt_file)
@@ -77,7 +79,6 @@ def run_pair(ours: dict, theirs: dict, out: pathlib.Path | None = None) -> dict 
     stamps = ta[_held(ta, np.asarray(b.timestamps))]
     if len(stamps) < MIN_COMMON_POSES:
         return None
-    align = ours.get("align") or ("sim3" if ours.get("sensor") == "mono" else "se3")
     try:
         ate_a = evaluate(gt, _cut(a, stamps), align=align, rpe_delta=None).ate["rmse"]
         ate_b = evaluate(gt, _cut(b, stamps), align=align, rpe_delta=None).ate["rmse"]
