@@ -49,13 +49,12 @@ def _held(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.minimum(after, before) <= STAMP_TOLERANCE_S
 
 
-def _cut(traj, stamps: np.ndarray):
-    """The poses of an evo trajectory at the given stamps."""
+def _cut(traj, keep: np.ndarray):
+    """The poses of an evo trajectory where keep (a mask over its poses) is set."""
     from evo.core.trajectory import PoseTrajectory3D
 
-    t = np.asarray(traj.timestamps)
-    keep = _held(t, stamps)
-    return PoseTrajectory3D(poses_se3=[p for p, k in zip(traj.poses_se3, keep) if k], timestamps=t[keep])
+    return PoseTrajectory3D(poses_se3=[p for p, k in zip(traj.poses_se3, keep) if k],
+                            timestamps=np.asarray(traj.timestamps)[keep])
 
 
 def run_pair(ours: dict, theirs: dict, out: pathlib.Path | None = None) -> dict | None:
@@ -75,16 +74,17 @@ def run_pair(ours: dict, theirs: dict, out: pathlib.Path | None = None) -> dict 
         a, b, gt = load_trajectory(ours_file), load_trajectory(theirs_file), load_trajectory(gt_file)
     except (ValueError, OSError, FileInterfaceException):  # unreadable or empty: no common-frame figure
         return None
-    ta = np.asarray(a.timestamps)
-    stamps = ta[_held(ta, np.asarray(b.timestamps))]
-    if len(stamps) < MIN_COMMON_POSES:
+    ta, tb = np.asarray(a.timestamps), np.asarray(b.timestamps)
+    keep_a, keep_b = _held(ta, tb), _held(tb, ta)
+    frames = int(np.count_nonzero(keep_a))
+    if frames < MIN_COMMON_POSES:
         return None
     try:
-        ate_a = evaluate(gt, _cut(a, stamps), align=align, rpe_delta=None).ate["rmse"]
-        ate_b = evaluate(gt, _cut(b, stamps), align=align, rpe_delta=None).ate["rmse"]
+        ate_a = evaluate(gt, _cut(a, keep_a), align=align, rpe_delta=None).ate["rmse"]
+        ate_b = evaluate(gt, _cut(b, keep_b), align=align, rpe_delta=None).ate["rmse"]
     except ValueError:  # too few poses match the ground truth
         return None
-    return {"frames": int(len(stamps)), "ours": float(ate_a), "theirs": float(ate_b)}
+    return {"frames": frames, "ours": float(ate_a), "theirs": float(ate_b)}
 
 
 def compare(ours_runs: list[dict], theirs_runs: list[dict], out: pathlib.Path | None = None) -> dict | None:
