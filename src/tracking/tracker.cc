@@ -208,8 +208,10 @@ void Tracker::update_last_frame() {
     if (p && p->erased() && p->replaced_by()) p = p->replaced_by();
   // Only the motion model (after a tracked frame) uses the points below.
   if (sensor_ == Sensor::kMono || !last_ok_ || last_keyframe_frame_ == last_.id || !last_.features) return;
+  // ORB-SLAM2's UpdateLastFrame makes these in localisation mode only.
+  if (!o_.motion_vo_points && !localization_) return;
   // Stereo / RGB-D: temporary points from the last frame's closest depths so
-  // that the motion model has enough to match (ORB-SLAM2's UpdateLastFrame).
+  // that the motion model has enough to match (TrackerOptions::motion_vo_points).
   int n = 0;
   for (const auto& [z, i] : by_depth(last_.f())) {
     const auto& p = last_.points[i];

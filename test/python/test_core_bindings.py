@@ -98,6 +98,24 @@ def test_run_names_a_bad_tracker_option(data, tmp_path):
         run_dataset(RunOptions(**base, tracker={"mono_init_feature_frames": 2.5}))
 
 
+def test_switch_options_from_the_shell():
+    """A switch (a bool option) from `--tracker KEY=true|false`: set as given,
+    1 / 0 accepted, anything else refused rather than rounded."""
+    from dynaorb.cli.commands import key_values
+    from dynaorb.runner.run import core_options
+
+    values = key_values(["motion_vo_points=false", "ref_ratio_mono=0.8"], "--tracker")
+    assert values == {"motion_vo_points": False, "ref_ratio_mono": 0.8}
+    o = core_options(core().TrackerOptions, values, "tracker")
+    assert o.motion_vo_points is False and o.ref_ratio_mono == 0.8
+    assert core_options(core().TrackerOptions, key_values(["motion_vo_points=TRUE"], "-t"), "tracker").motion_vo_points
+    assert not core_options(core().TrackerOptions, {"motion_vo_points": 0}, "tracker").motion_vo_points
+    with pytest.raises(ValueError, match="'motion_vo_points': 0.5 is not true / false"):
+        core_options(core().TrackerOptions, {"motion_vo_points": 0.5}, "tracker")
+    with pytest.raises(ValueError, match="--tracker 'motion_vo_points=yes': expected KEY=NUMBER or KEY=true / false"):
+        key_values(["motion_vo_points=yes"], "--tracker")
+
+
 def test_run_takes_tracker_options(data, tmp_path):
     from dynaorb.runner import RunOptions, run_dataset
     stats = run_dataset(RunOptions(kind="tum", path=str(data / "tum/rgbd_dataset_freiburg3_walking_xyz_fragment"),

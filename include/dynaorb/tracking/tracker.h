@@ -103,6 +103,23 @@ struct TrackerOptions {
   // against 0.038-0.043 m), so the default stays ORB-SLAM2's.
   double ref_ratio_stereo = 0.75;
   double ref_ratio_mono = 0.9;
+  // Stereo / RGB-D: before the motion model's search, the last frame's
+  // closest keypoints with depth that hold no map point become temporary
+  // "visual odometry" points (at least new_keyframe_close_points of them, all
+  // closer than ThDepth); they take part in the frame's pose optimisation and
+  // are dropped after it. ORB-SLAM2's UpdateLastFrame makes them in
+  // localisation mode only (`|| !mbOnlyTracking` returns early); we make them
+  // in SLAM mode too (false: ORB-SLAM2's behaviour; localisation mode makes
+  // them either way). Measured (synchronous; `dynaorb bench --suite seeds
+  // --sensors stereo,rgbd --conditions static,masks`, ATE medians over seeds
+  // 0-11; `dynaorb run ... --tracker motion_vo_points=false`):
+  //   true (default): stereo static 3.29 mm, ground-truth masks 3.89 (masks /
+  //     static median 1.17); RGB-D 2.63 / 3.02; KITTI 06 0.0595 m; EuRoC
+  //     V1_01_easy_micro stereo 0.86 mm
+  //   false: stereo 3.16 / 4.13 (1.38, above the 1.2 target); RGB-D 2.55 /
+  //     3.09; KITTI 06 0.0638 m; V1 0.84 mm with a step jitter between frames
+  //     of 0.33 / 0.42 mm sideways against 0.28 / 0.30
+  bool motion_vo_points = true;
   int close_tracked_max = 100;        // "need close points" when fewer tracked close
   int close_untracked_min = 70;       //   and this many untracked close ones
   int new_keyframe_close_points = 100;  // new keyframe points: all close ones, at least this many
@@ -243,6 +260,7 @@ void option_fields(const TrackerOptions*, F&& f) {
   f("max_local_keyframes", &TrackerOptions::max_local_keyframes);
   f("ref_ratio_stereo", &TrackerOptions::ref_ratio_stereo);
   f("ref_ratio_mono", &TrackerOptions::ref_ratio_mono);
+  f("motion_vo_points", &TrackerOptions::motion_vo_points);
   f("close_tracked_max", &TrackerOptions::close_tracked_max);
   f("close_untracked_min", &TrackerOptions::close_untracked_min);
   f("new_keyframe_close_points", &TrackerOptions::new_keyframe_close_points);

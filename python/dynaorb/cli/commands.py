@@ -27,16 +27,22 @@ def cmd_run(args) -> int:
 
 
 def key_values(items: list[str], flag: str) -> dict:
-    """KEY=VALUE strings -> {KEY: float VALUE}; ValueError names a malformed one."""
+    """KEY=VALUE strings -> {KEY: float VALUE, or True / False for `true` /
+    `false` (a switch such as --tracker motion_vo_points=false)}; ValueError
+    names a malformed one."""
     out = {}
     for item in items:
         key, sep, value = item.partition("=")
-        try:
-            out[key.strip()] = float(value)
-        except ValueError:
-            sep = ""
+        switch = value.strip().lower()
+        if switch in ("true", "false"):
+            out[key.strip()] = switch == "true"
+        else:
+            try:
+                out[key.strip()] = float(value)
+            except ValueError:
+                sep = ""
         if not sep or not key.strip():
-            raise ValueError(f"{flag} {item!r}: expected KEY=NUMBER")
+            raise ValueError(f"{flag} {item!r}: expected KEY=NUMBER or KEY=true / false")
     return out
 
 

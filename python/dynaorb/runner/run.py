@@ -294,7 +294,8 @@ def _mask_name(image_path: str) -> str:
 
 def core_options(cls, values: dict | None, what: str):
     """A `cls()` (a _core option class: TrackerOptions, LocalMapperOptions,
-    LoopCloserOptions) with `values` set (field name -> number; a dotted name,
+    LoopCloserOptions) with `values` set (field name -> number, or true / false
+    for a switch; a dotted name,
     e.g. "ransac.chi2", reaches a nested one), or None for the defaults.
     ValueError names an unknown field or a bad value ("unknown {what} option
     ..."); the ranges are checked where the System is made."""
@@ -314,10 +315,20 @@ def core_options(cls, values: dict | None, what: str):
         current = getattr(target, field)
         if not isinstance(current, (bool, int, float)):
             raise ValueError(f"{what} option '{key}' is a group of options: name one of its fields ('{key}.NAME')")
-        try:
-            cast = type(current)(value) if not isinstance(current, bool) else bool(int(value))
-        except (TypeError, ValueError):
-            raise ValueError(f"{what} option '{key}': {value!r} is not a {type(current).__name__}") from None
+        if isinstance(current, bool):
+            # A switch: true / false (1 / 0); 0.5 or 2 is refused, not rounded.
+            text = str(value).strip().lower()
+            if text in ("true", "1", "1.0"):
+                cast = True
+            elif text in ("false", "0", "0.0"):
+                cast = False
+            else:
+                raise ValueError(f"{what} option '{key}': {value!r} is not true / false (1 / 0)")
+        else:
+            try:
+                cast = type(current)(value)
+            except (TypeError, ValueError):
+                raise ValueError(f"{what} option '{key}': {value!r} is not a {type(current).__name__}") from None
         if isinstance(current, int) and not isinstance(current, bool) and float(value) != cast:
             raise ValueError(f"{what} option '{key}': {value!r} is not a whole number")
         try:
