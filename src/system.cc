@@ -174,6 +174,7 @@ struct System::Impl {
     auto calib = map::Calibration::make(settings, sensor, size.width, size.height);
     builder = std::make_unique<tracking::FrameBuilder>(settings, calib, options.tracker.mono_init_feature_factor,
                                                        options.tracker.stereo_right_budget_max_factor);
+    builder->set_exclude_margin(options.tracker.mask_margin);
     if (options.vocabulary)
       database = std::make_unique<place::KeyFrameDatabase>(map, options.vocabulary, options.database);
     mapper = std::make_unique<mapping::LocalMapper>(map, sensor, options.mapping, options.vocabulary,

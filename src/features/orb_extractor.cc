@@ -200,6 +200,22 @@ void check_exclude(const cv::Mat& exclude, const cv::Size& image_size) {
                                 "of the image size");
 }
 
+// Whether `m` (CV_8UC1) is non-zero anywhere in the square of half-size r
+// around (u, v), clipped to the image.
+bool near_excluded(const cv::Mat& m, int u, int v, int r) {
+  const int x0 = std::max(u - r, 0), x1 = std::min(u + r, m.cols - 1);
+  const int y0 = std::max(v - r, 0), y1 = std::min(v + r, m.rows - 1);
+  if (x1 < x0) return false;
+  const size_t n = static_cast<size_t>(x1 - x0 + 1);
+  for (int y = y0; y <= y1; ++y) {
+    const uchar* row = m.ptr<uchar>(y) + x0;
+    // memchr-style: the first non-zero byte of the row's span.
+    for (size_t i = 0; i < n; ++i)
+      if (row[i]) return true;
+  }
+  return false;
+}
+
 // The FAST area of a level: [b, max_x) x [b, max_y), b = EDGE_THRESHOLD - 3,
 // so corners lie at least EDGE_THRESHOLD px inside the level (room for the
 // 31x31 rotated patch); det_w x det_h pixels can hold a corner.
@@ -324,7 +340,8 @@ void OrbExtractor::describe_level(OrbDetection& d, int level, const cv::Mat& exc
   const int b = a.b, max_x = a.max_x, max_y = a.max_y;
   std::vector<cv::KeyPoint>& cand = d.corners[level];
 
-  // 3a. Drop the corners whose level-0 position is excluded.
+  // 3a. Drop the corners whose level-0 position is excluded, or that have an
+  // excluded pixel within exclude_margin_ level pixels (set_exclude_margin).
   const float sc = scale_[level];
   if (!exclude.empty()) {
     auto at = [&](const cv::Mat& m, const cv::KeyPoint& k) {
@@ -332,9 +349,15 @@ void OrbExtractor::describe_level(OrbDetection& d, int level, const cv::Mat& exc
       const int v = std::clamp(cvRound(k.pt.y * sc), 0, m.rows - 1);
       return m.at<uchar>(v, u) != 0;
     };
+    const int r = exclude_margin_ > 0 ? static_cast<int>(std::ceil(exclude_margin_ * sc - 1e-4f)) : 0;
+    auto excluded = [&](const cv::KeyPoint& k) {
+      if (at(exclude, k)) return true;
+      if (r == 0) return false;
+      return near_excluded(exclude, cvRound(k.pt.x * sc), cvRound(k.pt.y * sc), r);
+    };
     if (count_region) {
       int dropped = 0;
-      for (const cv::KeyPoint& k : cand) dropped += at(exclude, k) && at(*count_region, k);
+      for (const cv::KeyPoint& k : cand) dropped += excluded(k) && at(*count_region, k);
       d.excluded_corners[level] = dropped;
       if (dropped > 0) {
         // What the level would have kept without the exclusion.
@@ -344,8 +367,7 @@ void OrbExtractor::describe_level(OrbDetection& d, int level, const cv::Mat& exc
         for (int idx : s.keep) d.excluded_keypoints[level] += at(*count_region, cand[idx]);
       }
     }
-    cand.erase(std::remove_if(cand.begin(), cand.end(), [&](const cv::KeyPoint& k) { return at(exclude, k); }),
-               cand.end());
+    cand.erase(std::remove_if(cand.begin(), cand.end(), excluded), cand.end());
   }
 
   // 3b. Quadtree distribution over the FAST area.
@@ -403,6 +425,13 @@ void OrbExtractor::finish(OrbDetection&& d, std::vector<cv::KeyPoint>& keypoints
     }
   }
   pyramid_ = std::move(d.pyramid);
+}
+
+void OrbExtractor::set_exclude_margin(int level_px) {
+  if (level_px < 0)
+    throw std::invalid_argument("OrbExtractor: exclude margin must be >= 0 level pixels, got " +
+                                std::to_string(level_px));
+  exclude_margin_ = level_px;
 }
 
 std::vector<std::vector<int>> OrbExtractor::level_groups(int groups) const {

@@ -25,6 +25,11 @@ FrameBuilder::FrameBuilder(const Settings& settings, std::shared_ptr<const map::
       init_(scaled(settings.extractor, init_feature_factor)), n_features_(settings.extractor.n_features),
       right_budget_max_factor_(std::max(right_budget_max_factor, 1.0)) {}
 
+void FrameBuilder::set_exclude_margin(int level_px) {
+  left_.set_exclude_margin(level_px);
+  init_.set_exclude_margin(level_px);
+}
+
 int FrameBuilder::right_budget(const cv::Mat& exclude) const {
   // The left budget goes to the pixels the mask leaves (OrbExtractor), so
   // there the left keypoints are 1 / (1 - m) times denser than without a

@@ -50,6 +50,7 @@ void TrackerOptions::validate() const {
   c.at_least("max_frames", max_frames, -1);  // -1: Camera.fps
   c.at_least("max_local_keyframes", max_local_keyframes, 1);
   c.at_least("mono_init_feature_factor", mono_init_feature_factor, 1);
+  c.at_least("mask_margin", mask_margin, 0);  // level pixels
   for (const auto& [name, v] : {std::pair<const char*, double>{"motion_th_stereo", motion_th_stereo},
                                 {"motion_th_mono", motion_th_mono},
                                 {"local_search_th_stereo", local_search_th_stereo},

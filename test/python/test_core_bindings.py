@@ -104,16 +104,18 @@ def test_switch_options_from_the_shell():
     from dynaorb.cli.commands import key_values
     from dynaorb.runner.run import core_options
 
-    values = key_values(["motion_vo_points=false", "ref_ratio_mono=0.8"], "--tracker")
-    assert values == {"motion_vo_points": False, "ref_ratio_mono": 0.8}
+    values = key_values(["motion_vo_points=false", "mask_margin=3"], "--tracker")
+    assert values == {"motion_vo_points": False, "mask_margin": 3.0}
     o = core_options(core().TrackerOptions, values, "tracker")
-    assert o.motion_vo_points is False and o.ref_ratio_mono == 0.8
+    assert o.motion_vo_points is False and o.mask_margin == 3
     assert core_options(core().TrackerOptions, key_values(["motion_vo_points=TRUE"], "-t"), "tracker").motion_vo_points
     assert not core_options(core().TrackerOptions, {"motion_vo_points": 0}, "tracker").motion_vo_points
     with pytest.raises(ValueError, match="'motion_vo_points': 0.5 is not true / false"):
         core_options(core().TrackerOptions, {"motion_vo_points": 0.5}, "tracker")
     with pytest.raises(ValueError, match="--tracker 'motion_vo_points=yes': expected KEY=NUMBER or KEY=true / false"):
         key_values(["motion_vo_points=yes"], "--tracker")
+    with pytest.raises(ValueError, match="tracker option 'mask_margin' is -1"):
+        core_options(core().TrackerOptions, {"mask_margin": -1}, "tracker").validate()
 
 
 def test_run_takes_tracker_options(data, tmp_path):

@@ -45,7 +45,8 @@ class OrbExtractor {
   explicit OrbExtractor(const ExtractorSettings& settings);
 
   // image: CV_8UC1. exclude: empty or CV_8UC1 of the image size; keypoints at
-  // non-zero pixels are dropped before the quadtree distribution, so the
+  // non-zero pixels (or near them: set_exclude_margin) are dropped before the
+  // quadtree distribution, so the
   // feature budget goes to the rest of the image. Keypoints come in level-0
   // pixel coordinates with octave = pyramid level, angle in degrees, size =
   // patch diameter at that level. descriptors: N x 32 CV_8U. count
@@ -82,6 +83,16 @@ class OrbExtractor {
   // levels as at construction.
   void set_n_features(int n);
 
+  // A corner is also dropped when an excluded pixel lies within `level_px`
+  // pixels of it at its own level (a square of half-size ceil(level_px s^l)
+  // level-0 pixels around its level-0 position): FAST decides on a circle of
+  // radius 3 level pixels, so a corner just outside a mask, found on the
+  // masked object's silhouette, moves with the object; at level 7 (s 1.2)
+  // that circle spans 11 level-0 pixels. 0 (the default): only the corner's
+  // own pixel is tested. std::invalid_argument below 0.
+  void set_exclude_margin(int level_px);
+  int exclude_margin() const { return exclude_margin_; }
+
   // The pyramid of the last extracted image (level 0 = the image itself).
   const std::vector<cv::Mat>& pyramid() const { return pyramid_; }
 
@@ -102,6 +113,7 @@ class OrbExtractor {
   std::vector<float> scale_, inv_scale_, sigma2_, inv_sigma2_;
   std::vector<int> features_per_level_;
   std::vector<int> umax_;  // circular patch bounds for the intensity centroid
+  int exclude_margin_ = 0;
   std::vector<cv::Mat> pyramid_;
 };
 

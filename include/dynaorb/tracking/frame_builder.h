@@ -64,6 +64,9 @@ class FrameBuilder {
                                             const ExclusionSource& exclude, StageTimes& t,
                                             features::ExcludedCount* count = nullptr);
   const std::shared_ptr<const map::Calibration>& calib() const { return calib_; }
+  // The margin around excluded pixels (OrbExtractor::set_exclude_margin) of
+  // the masked image (left / only; the right image is never masked).
+  void set_exclude_margin(int level_px);
 
  private:
   std::shared_ptr<map::Features> extract(features::OrbExtractor& extractor, const cv::Mat& grey,

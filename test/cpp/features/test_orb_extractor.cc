@@ -286,6 +286,49 @@ TEST(OrbExtractor, ExcludeMaskMovesTheBudgetElsewhere) {
   for (size_t i = 0; i < all.size(); ++i) EXPECT_EQ(same[i].pt, all[i].pt);
 }
 
+// With a margin, no kept keypoint of level l has an excluded pixel within
+// margin * s^l pixels (its FAST circle at margin 3); without one, keypoints
+// of the coarse levels sit that close to the mask's edge.
+TEST(OrbExtractor, ExcludeMarginKeepsCornersOffTheMasksEdge) {
+  DYNAORB_REQUIRE_SHARED();
+  const cv::Mat img = euroc_image();
+  ASSERT_FALSE(img.empty());
+  cv::Mat exclude = cv::Mat::zeros(img.size(), CV_8U);
+  exclude(cv::Rect(img.cols / 4, img.rows / 4, img.cols / 2, img.rows / 2)).setTo(255);
+  cv::circle(exclude, cv::Point(80, 400), 50, cv::Scalar(1), cv::FILLED);
+  OrbExtractor ex(settings(1000));
+  const std::vector<float>& scale = ex.scale_factors();
+  // Keypoints with an excluded pixel in the square of half-size ceil(3 s^l).
+  const auto near_mask = [&](const std::vector<cv::KeyPoint>& kps) {
+    int n = 0;
+    for (const cv::KeyPoint& k : kps) {
+      const int r = static_cast<int>(std::ceil(3 * scale[k.octave] - 1e-4f));
+      const cv::Rect box = cv::Rect(cvRound(k.pt.x) - r, cvRound(k.pt.y) - r, 2 * r + 1, 2 * r + 1) &
+                           cv::Rect(0, 0, img.cols, img.rows);
+      n += cv::countNonZero(exclude(box)) > 0;
+    }
+    return n;
+  };
+  std::vector<cv::KeyPoint> plain, margin;
+  cv::Mat desc;
+  ex.extract(img, exclude, plain, desc);
+  EXPECT_EQ(ex.exclude_margin(), 0);
+  EXPECT_GT(near_mask(plain), 10);
+  ex.set_exclude_margin(3);
+  ex.extract(img, exclude, margin, desc);
+  EXPECT_EQ(near_mask(margin), 0);
+  EXPECT_GE(margin.size(), 900u);  // the budget goes elsewhere
+  EXPECT_EQ(desc.rows, static_cast<int>(margin.size()));
+  // Without a mask the margin changes nothing.
+  std::vector<cv::KeyPoint> all, all_margin;
+  ex.extract(img, cv::Mat(), all_margin, desc);
+  ex.set_exclude_margin(0);
+  ex.extract(img, cv::Mat(), all, desc);
+  ASSERT_EQ(all.size(), all_margin.size());
+  for (size_t i = 0; i < all.size(); ++i) EXPECT_EQ(all[i].pt, all_margin[i].pt);
+  EXPECT_THROW(ex.set_exclude_margin(-1), std::invalid_argument);
+}
+
 // One extraction of a KITTI image with an exclusion mask, to compare the
 // two-step paths against: `one` ran extract() with 2000 features.
 struct Reference {
