@@ -151,8 +151,12 @@ struct TrackerOptions {
   // nFeatures (ORB-SLAM2 takes 2, ORB-SLAM3 5), and frames after the one that
   // made the map that are still extracted with that count. ORB-SLAM3
   // (Tracking::GrabImageMonocular) keeps its 5x extractor while `lastID -
-  // initID < mMaxFrames` (about the first fps frames); ORB-SLAM2 goes back to
-  // nFeatures at once (frames 0). Our defaults, 4x and 60 frames, are chosen by
+  // initID < mMaxFrames`, where lastID is the frame's id and initID the
+  // map's second keyframe's (1 on the first map): up to the sequence's frame
+  // fps however late the map comes, and not at all after a map made past
+  // it (pyorbslam3 on the synthetic monocular room with movers, seed 0: map
+  // at frame 21 of a 20 fps clip, 20-25 ms a frame before it and 7-8 ms from
+  // the next frame on). ORB-SLAM2 goes back to nFeatures at once (frames 0). Our defaults, 4x and 60 frames, are chosen by
   // measurement on EuRoC MH_05_difficult_head (`dynaorb run euroc ... --sensor
   // mono --tracker KEY=VALUE`, synchronous mapping, Sim3 ATE over the tracked
   // frames):
@@ -184,7 +188,7 @@ struct TrackerOptions {
   //   1000: MH_05 at frame 66, 0.0153 m, 242/242; static 4.99 mm, `full`
   //     median 1.05x static (seeds 0-2: 0.89), ground-truth masks 1.00x
   //     (0.98); synthetic frames switch at frame ~20; 8.7 ms
-  // (ORB-SLAM3 keeps its 5x extractor for about fps frames after the map.)
+  // (ORB-SLAM3 keeps its 5x extractor up to the sequence's frame fps; above.)
   // 600 measured again at eac46ff: MH_05 0.0116 m against 0.0153, 242/250
   // frames both; the bench's synthetic monocular sequences (seed 0,
   // asynchronous mapping, unpaced, 4 + 4 interleaved runs) track call median
