@@ -206,12 +206,9 @@ bool near_excluded(const cv::Mat& m, int u, int v, int r) {
   const int x0 = std::max(u - r, 0), x1 = std::min(u + r, m.cols - 1);
   const int y0 = std::max(v - r, 0), y1 = std::min(v + r, m.rows - 1);
   if (x1 < x0) return false;
-  const size_t n = static_cast<size_t>(x1 - x0 + 1);
   for (int y = y0; y <= y1; ++y) {
-    const uchar* row = m.ptr<uchar>(y) + x0;
-    // memchr-style: the first non-zero byte of the row's span.
-    for (size_t i = 0; i < n; ++i)
-      if (row[i]) return true;
+    const uchar* row = m.ptr<uchar>(y);
+    if (std::any_of(row + x0, row + x1 + 1, [](uchar p) { return p != 0; })) return true;
   }
   return false;
 }

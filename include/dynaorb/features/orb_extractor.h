@@ -46,11 +46,11 @@ class OrbExtractor {
 
   // image: CV_8UC1. exclude: empty or CV_8UC1 of the image size; keypoints at
   // non-zero pixels (or near them: set_exclude_margin) are dropped before the
-  // quadtree distribution, so the
-  // feature budget goes to the rest of the image. Keypoints come in level-0
-  // pixel coordinates with octave = pyramid level, angle in degrees, size =
-  // patch diameter at that level. descriptors: N x 32 CV_8U. count
-  // (optional): what the exclusion cost inside count->region.
+  // quadtree distribution, so the feature budget goes to the rest of the
+  // image. Keypoints come in level-0 pixel coordinates with octave = pyramid
+  // level, angle in degrees, size = patch diameter at that level.
+  // descriptors: N x 32 CV_8U. count (optional): what the exclusion cost
+  // inside count->region.
   void extract(const cv::Mat& image, const cv::Mat& exclude, std::vector<cv::KeyPoint>& keypoints,
                cv::Mat& descriptors, ExcludedCount* count = nullptr);
   // extract() in two steps, with the same result: detect() reads only the

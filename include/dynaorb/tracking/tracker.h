@@ -152,14 +152,14 @@ struct TrackerOptions {
   // made the map that are still extracted with that count. ORB-SLAM3
   // (Tracking::GrabImageMonocular) keeps its 5x extractor while `lastID -
   // initID < mMaxFrames`, where lastID is the frame's id and initID the
-  // map's second keyframe's (1 on the first map): up to the sequence's frame
+  // map's second keyframe's (1 on the first map): to about the clip's frame
   // fps however late the map comes, and not at all after a map made past
   // it (pyorbslam3 on the synthetic monocular room with movers, seed 0: map
   // at frame 21 of a 20 fps clip, 20-25 ms a frame before it and 7-8 ms from
-  // the next frame on). ORB-SLAM2 goes back to nFeatures at once (frames 0). Our defaults, 4x and 60 frames, are chosen by
-  // measurement on EuRoC MH_05_difficult_head (`dynaorb run euroc ... --sensor
-  // mono --tracker KEY=VALUE`, synchronous mapping, Sim3 ATE over the tracked
-  // frames):
+  // the next frame on). ORB-SLAM2 goes back to nFeatures at once (frames
+  // 0). Our defaults, 4x and 60 frames, are chosen by measurement on EuRoC
+  // MH_05_difficult_head (`dynaorb run euroc ... --sensor mono --tracker
+  // KEY=VALUE`, synchronous mapping, Sim3 ATE over the tracked frames):
   //   factor 2, frames 0 (ORB-SLAM2): first map at frame 85, all later tracked, 0.012 m
   //   factor 3, frames 0 / 20:        frame 54, all tracked, 0.017 / 0.014 m
   //   factor 4, frames 0 / 20:        frame 8 (from the first centimetre of motion over

@@ -295,8 +295,8 @@ def _mask_name(image_path: str) -> str:
 def core_options(cls, values: dict | None, what: str):
     """A `cls()` (a _core option class: TrackerOptions, LocalMapperOptions,
     LoopCloserOptions) with `values` set (field name -> number, or true / false
-    for a switch; a dotted name,
-    e.g. "ransac.chi2", reaches a nested one), or None for the defaults.
+    for a switch; a dotted name, e.g. "ransac.chi2", reaches a nested one), or
+    None for the defaults.
     ValueError names an unknown field or a bad value ("unknown {what} option
     ..."); the ranges are checked where the System is made."""
     if not values:
