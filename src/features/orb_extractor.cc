@@ -347,10 +347,9 @@ void OrbExtractor::describe_level(OrbDetection& d, int level, const cv::Mat& exc
       return m.at<uchar>(v, u) != 0;
     };
     const int r = exclude_margin_ > 0 ? static_cast<int>(std::ceil(exclude_margin_ * sc - 1e-4f)) : 0;
+    // With a margin the square holds the corner's own pixel too.
     auto excluded = [&](const cv::KeyPoint& k) {
-      if (at(exclude, k)) return true;
-      if (r == 0) return false;
-      return near_excluded(exclude, cvRound(k.pt.x * sc), cvRound(k.pt.y * sc), r);
+      return r == 0 ? at(exclude, k) : near_excluded(exclude, cvRound(k.pt.x * sc), cvRound(k.pt.y * sc), r);
     };
     if (count_region) {
       int dropped = 0;
