@@ -27,7 +27,8 @@ std::vector<std::shared_ptr<KeyFrame>> LoopCloser::detect(KeyFrame& kf) {
   double min_score = 1.0;
   for (const KeyFrame* n : kf.covisibles()) {
     if (n->erased() || !n->bow()) continue;
-    min_score = std::min(min_score, database_.vocabulary().score(kf.bow()->words, n->bow()->words));
+    min_score = std::min(min_score, vocab::score_l1(kf.bow()->words, kf.bow()->words_l1, n->bow()->words,
+                                                    n->bow()->words_l1));
   }
   const std::vector<place::PlaceCandidate> found = database_.loop_candidates(kf, min_score);
   if (found.empty()) {

@@ -6,9 +6,10 @@ namespace dynaorb::map {
 
 std::shared_ptr<const BagOfWords> BagOfWords::compute(const vocab::Vocabulary& vocabulary,
                                                       const Features& features, int levels_up) {
-  auto b = std::make_shared<BagOfWords>();
-  vocabulary.transform(features.descriptors, b->words, b->nodes, levels_up);
-  return b;
+  vocab::BowVector words;
+  vocab::FeatureVector nodes;
+  vocabulary.transform(features.descriptors, words, nodes, levels_up);
+  return std::make_shared<const BagOfWords>(std::move(words), std::move(nodes));
 }
 
 }  // namespace dynaorb::map

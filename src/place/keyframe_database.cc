@@ -56,7 +56,7 @@ std::size_t KeyFrameDatabase::size() const {
 }
 
 std::vector<PlaceCandidate> KeyFrameDatabase::relocalization_candidates(const vocab::BowVector& bow) const {
-  return candidates(bow, nullptr, 0.0);
+  return candidates(bow, bow.l1_norm(), nullptr, 0.0);
 }
 
 std::vector<PlaceCandidate> KeyFrameDatabase::loop_candidates(const KeyFrame& query, double min_score) const {
@@ -66,10 +66,10 @@ std::vector<PlaceCandidate> KeyFrameDatabase::loop_candidates(const KeyFrame& qu
   std::unordered_set<const KeyFrame*> connected;
   for (const KeyFrame* n : query.covisibles()) connected.insert(n);
   connected.insert(&query);
-  return candidates(query.bow()->words, &connected, min_score);
+  return candidates(query.bow()->words, query.bow()->words_l1, &connected, min_score);
 }
 
-std::vector<PlaceCandidate> KeyFrameDatabase::candidates(const vocab::BowVector& bow,
+std::vector<PlaceCandidate> KeyFrameDatabase::candidates(const vocab::BowVector& bow, const double bow_l1,
                                                          const std::unordered_set<const KeyFrame*>* excluded,
                                                          double min_score) const {
   // Keyframes sharing words with the query (the excluded ones aside), and how many.
@@ -86,10 +86,11 @@ std::vector<PlaceCandidate> KeyFrameDatabase::candidates(const vocab::BowVector&
   for (const auto& [kf, n] : common) max_common = std::max(max_common, n);
   const double min_common = o_.min_common_words_ratio * max_common;
 
-  // Those sharing enough words, scored (bags of words are immutable once set).
+  // Those sharing enough words, scored (bags of words are immutable once set,
+  // their norms computed with them).
   std::unordered_map<KeyFrame*, double> score;
   for (const auto& [kf, n] : common)
-    if (n > min_common) score[kf] = vocabulary_->score(bow, kf->bow()->words);
+    if (n > min_common) score[kf] = vocab::score_l1(bow, bow_l1, kf->bow()->words, kf->bow()->words_l1);
 
   // Each keyframe scoring at least min_score, with its best covisibles that
   // were scored too: the group's score accumulates, its best keyframe stands

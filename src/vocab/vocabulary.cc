@@ -30,8 +30,9 @@ void BowVector::normalize_l1() {
   for (auto& [id, w] : *this) w /= n;
 }
 
-double score_l1(const BowVector& a, const BowVector& b) {
-  const double na = a.l1_norm(), nb = b.l1_norm();
+double score_l1(const BowVector& a, const BowVector& b) { return score_l1(a, a.l1_norm(), b, b.l1_norm()); }
+
+double score_l1(const BowVector& a, const double na, const BowVector& b, const double nb) {
   if (na <= 0.0 || nb <= 0.0) return 0.0;
   // 1 - 0.5 * sum_i |a_i - b_i| over normalised vectors equals
   // 0.5 * sum over shared words of |a_i| + |b_i| - |a_i - b_i|.

@@ -5,6 +5,7 @@
 // vocabulary node). Computed once from the immutable Features and shared
 // read-only, like them.
 #include <memory>
+#include <utility>
 
 #include "dynaorb/map/features.h"
 #include "dynaorb/vocab/bow_vector.h"
@@ -20,8 +21,12 @@ struct BagOfWords {
   // ORB-SLAM2 use 4; with a 6-level tree, nodes at depth 2).
   static constexpr int kLevelsUp = 4;
 
-  vocab::BowVector words;
-  vocab::FeatureVector nodes;
+  BagOfWords(vocab::BowVector w, vocab::FeatureVector n)
+      : words(std::move(w)), words_l1(words.l1_norm()), nodes(std::move(n)) {}
+
+  const vocab::BowVector words;
+  const double words_l1;  // words.l1_norm(), for vocab::score_l1
+  const vocab::FeatureVector nodes;
 
   static std::shared_ptr<const BagOfWords> compute(const vocab::Vocabulary& vocabulary,
                                                    const Features& features,

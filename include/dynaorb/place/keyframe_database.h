@@ -79,8 +79,8 @@ class KeyFrameDatabase : public map::MapObserver {
  private:
   // ORB-SLAM's scoring and covisibility grouping, shared by both queries:
   // keyframes in `excluded` are skipped, groups are seeded by keyframes
-  // scoring at least min_score.
-  std::vector<PlaceCandidate> candidates(const vocab::BowVector& bow,
+  // scoring at least min_score. bow_l1: bow.l1_norm().
+  std::vector<PlaceCandidate> candidates(const vocab::BowVector& bow, double bow_l1,
                                          const std::unordered_set<const map::KeyFrame*>* excluded,
                                          double min_score) const;
   map::Map& map_;

@@ -52,5 +52,9 @@ void for_each_shared_key(const Map& a, const Map& b, Fn&& fn) {
 // DBoW2's L1 score, 1 - 0.5 * | a/|a| - b/|b| |_1, in [0, 1]: 1 for vectors
 // with the same direction, 0 when no word is shared (or either is empty).
 double score_l1(const BowVector& a, const BowVector& b);
+// The same score with both vectors' l1_norm() given: the norms of stored bags
+// of words are computed once (map::BagOfWords::words_l1) instead of walking
+// both maps again for every pair scored; the result is bit for bit the same.
+double score_l1(const BowVector& a, double a_l1, const BowVector& b, double b_l1);
 
 }  // namespace dynaorb::vocab

@@ -123,9 +123,7 @@ TEST(KeyFrameDatabase, GroupsAccumulateOverCovisiblesAndKeepTheirBest) {
   auto make = [&](vocab::BowVector words) {
     auto kf = std::make_shared<KeyFrame>(map.new_keyframe_id(), 0, 0, place_data().frames[0],
                                          Eigen::Isometry3d::Identity());
-    auto bow = std::make_shared<map::BagOfWords>();
-    bow->words = std::move(words);
-    kf->set_bow(bow);
+    kf->set_bow(std::make_shared<const map::BagOfWords>(std::move(words), vocab::FeatureVector{}));
     map.add_keyframe(kf);
     db.add(*kf);
     return kf;

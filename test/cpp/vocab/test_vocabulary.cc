@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "../test_util.h"
+#include "dynaorb/map/bag_of_words.h"
 #include "dynaorb/vocab/vocabulary.h"
 
 namespace dynaorb {
@@ -254,6 +255,12 @@ TEST(Vocabulary, ScoreL1) {
   EXPECT_NEAR(score_l1(a, a), 1.0, 1e-12);
   EXPECT_EQ(score_l1(a, empty), 0.0);
   EXPECT_EQ(score_l1(a, c), 0.0);
+  // With the norms given (what stored bags of words keep): the same value, bit for bit.
+  const map::BagOfWords bag_a(a, {}), bag_b(b, {});
+  EXPECT_EQ(bag_a.words_l1, 1.0);
+  EXPECT_EQ(bag_b.words_l1, 3.0);
+  EXPECT_EQ(score_l1(bag_a.words, bag_a.words_l1, bag_b.words, bag_b.words_l1), score_l1(a, b));
+  EXPECT_EQ(score_l1(a, 0.0, b, 3.0), 0.0);  // an empty (zero-norm) side scores 0
   b.normalize_l1();
   EXPECT_NEAR(b[2], 1.0, 1e-12);
 }
