@@ -46,7 +46,14 @@ def test_suite_runs_and_reports(tiny_suite):
     assert records["off"]["ate_rmse"] < 1.0 and records["off"]["ate_rmse"] > 5 * records["dm"]["ate_rmse"]
     assert records["dm"]["labels"] and records["dm"]["dynamic_filter"]["stages"] == ["semantic", "dm"]
     assert records["off"]["labels"] is None
+    # The build measured: the core fingerprint every run was started with, and the checkout's commit.
+    from dynaorb.bench.build_info import core_fingerprint
+
+    assert saved["build"]["core"] == core_fingerprint() and len(saved["build"]["core"]) == 16
+    for r in saved["records"]:
+        assert json.loads((pathlib.Path(r["out"]) / "spec.json").read_text())["core"] == core_fingerprint()
     text = (out / "report.md").read_text()
+    assert f"core fingerprint {core_fingerprint()}" in text
     assert "## Every case" in text and "## Dynamic presets against off" in text and "li" in text
     assert f"{records['off']['ate_rmse']:.4f}" in text
     assert (out / "plots" / "stages.png").is_file()
@@ -67,6 +74,26 @@ def test_crashed_run_is_recorded(tmp_path):
                     tmp_path / "log3", 30)
     small = run_child([sys.executable, "-c", "import time; time.sleep(0.3)"], tmp_path / "log4", 30)
     assert big.ok and big.peak_rss_mb > 200 and small.peak_rss_mb < 40
+
+
+def test_a_run_on_another_core_build_refuses_to_start(tmp_path):
+    """A rebuild while a benchmark runs: the child loads a core whose fingerprint is not the one the benchmark
+    started with, and stops before running, naming both, instead of mixing two builds in one table."""
+    from dynaorb.bench.suite_runner import run_spec
+
+    spec = {"kind": "tum", "path": str(tmp_path / "nowhere"), "out": str(tmp_path / "run"),
+            "result": str(tmp_path / "run" / "result.json"), "core": "0" * 16}
+    child = run_spec(tmp_path / "run", spec, 120)
+    assert child.returncode == 3, child.log_tail()
+    assert "rebuilt while the benchmark ran" in child.log_tail() and "fingerprint 0000000000000000" in child.log_tail()
+    assert not (tmp_path / "run" / "result.json").exists()
+
+
+def test_report_names_the_build(tmp_path):
+    assert report.build_text(None) == "build not recorded"
+    assert report.build_text({"commit": "0123456789abcdef", "dirty": True, "core": "f" * 16}) == (
+        "dynaorb at commit 0123456789 with uncommitted changes, core fingerprint " + "f" * 16)
+    assert report.build_text({"commit": None, "dirty": None, "core": "a" * 16}).startswith("dynaorb at commit unknown")
 
 
 def test_suites_cover_sensors_and_list_what_is_not_run(tmp_path, data):

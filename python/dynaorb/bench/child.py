@@ -1,6 +1,8 @@
 """One benchmark run of dynaorb in its own process: `python -m dynaorb.bench.child SPEC.json`.
 
-SPEC.json holds RunOptions fields; the stats (as run_dataset returns them,
+SPEC.json holds RunOptions fields and "core", the fingerprint of the core
+build the benchmark started with (build_info): a child that loads another
+build stops with exit status 3 and says so, before it runs. The stats (as run_dataset returns them,
 without the per-frame lists of the dynamic filter) go to SPEC's "result"
 file. The parent measures this process's peak memory (wait4) and survives
 its crash.
@@ -19,9 +21,15 @@ def main(argv: list[str]) -> int:
         return 2
     spec = json.loads(pathlib.Path(argv[0]).read_text())
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    from dynaorb.bench.build_info import CoreChanged, check_core
     from dynaorb.runner import RunOptions, run_dataset
 
     result_file = pathlib.Path(spec.pop("result"))
+    try:
+        check_core(spec.pop("core", None))
+    except CoreChanged as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 3
     stats = run_dataset(RunOptions(**spec, progress=False))
     dyn = stats.get("dynamic_filter")
     if dyn:

@@ -335,13 +335,25 @@ def stage_plot(rows: list[dict], out: pathlib.Path) -> pathlib.Path | None:
 
 # --- the report -----------------------------------------------------------------------------------------
 
+def build_text(b: dict | None) -> str:
+    """The build a results.json measured, in words (older results have none)."""
+    if not b:
+        return "build not recorded"
+    if b.get("commit"):
+        commit = f"commit {b['commit'][:10]}" + (" with uncommitted changes" if b.get("dirty") else "")
+    else:
+        commit = "commit unknown"
+    return f"dynaorb at {commit}, core fingerprint {b.get('core')}"
+
+
 def render(results: dict, out: pathlib.Path, plots: dict | None = None, stages_png=None) -> str:
     rows = aggregate(results["records"])
     m = results.get("machine", {})
     peer = results.get("peer") or {}
     lines = [f"# Benchmark: suite {results['suite']}", "",
              f"{results['runs']} run(s) per case; started {results.get('started')}, finished {results.get('finished')}; "
-             f"{m.get('cpus')} CPUs ({m.get('cpu', 'unknown CPU')}), {m.get('platform')}.", "",
+             f"{m.get('cpus')} CPUs ({m.get('cpu', 'unknown CPU')}), {m.get('platform')}; "
+             f"{build_text(results.get('build'))}.", "",
              f"- dynaorb mode: {results.get('mapping')}. Medians over the runs; ATE min-max when more than one run.",
              "- ms/frame: *tracking thread* is the median of dynaorb's per-frame stage sum (preprocess, dynamic, "
              "extract, stereo_matching, tracking); *track call* is the wall time around the track call (image "

@@ -37,6 +37,7 @@ import pathlib
 import statistics
 
 from dynaorb.bench import seeds_peer
+from dynaorb.bench.build_info import build, core_fingerprint
 from dynaorb.bench.suites import SYNTH_FRAMES, Sequence, ensure_rendered, synth_sequence
 
 SENSORS = ("rgbd", "stereo", "mono")
@@ -156,7 +157,8 @@ def _run(seq: Sequence, sensor: str, seed: int, condition: str, out: pathlib.Pat
     if condition in FILTERED:
         preset = opts.preset
     spec = {"kind": seq.kind, "path": seq.path, "sensor": sensor, "out": str(out), "dynamic": preset,
-            "vocabulary": opts.vocabulary, "synchronous_mapping": True, "result": str(out / "result.json")}
+            "vocabulary": opts.vocabulary, "synchronous_mapping": True, "result": str(out / "result.json"),
+            "core": core_fingerprint()}
     if labels:
         spec["labels"] = seq.labels
     if masks:
@@ -194,7 +196,7 @@ def run_seeds(opts: SeedsOptions, progress=print) -> dict:
         progress(f"rendering {len(missing)} synthetic sequences (cached in {root})")
         with concurrent.futures.ProcessPoolExecutor(max_workers=opts.jobs) as pool:
             list(pool.map(ensure_rendered, missing))
-    results = {"suite": "seeds", "started": datetime.datetime.now().isoformat(timespec="seconds"),
+    results = {"suite": "seeds", "started": datetime.datetime.now().isoformat(timespec="seconds"), "build": build(),
                "options": {k: v for k, v in dataclasses.asdict(opts).items() if k not in ("out", "resume")},
                "conditions": {c: dict(zip(("movers", "preset", "labels", "masks"),
                                           (CONDITIONS[c][0], opts.preset if c in FILTERED else CONDITIONS[c][1],

@@ -32,6 +32,7 @@ import platform
 import re
 import sys
 
+from dynaorb.bench.build_info import build, core_fingerprint
 from dynaorb.bench.process import child_env, run_child
 from dynaorb.bench.suites import Case, Sequence, Suite, build_suite, ensure_rendered
 
@@ -95,7 +96,8 @@ def _ours_record(case: Case, run: int, out: pathlib.Path, opts: BenchOptions) ->
     seq = case.sequence
     out.mkdir(parents=True, exist_ok=True)
     spec = {"kind": seq.kind, "path": seq.path, "sensor": seq.sensor, "out": str(out), "dynamic": case.preset,
-            "vocabulary": opts.vocabulary, "synchronous_mapping": False, "result": str(out / "result.json")}
+            "vocabulary": opts.vocabulary, "synchronous_mapping": False, "result": str(out / "result.json"),
+            "core": core_fingerprint()}
     if opts.realtime:
         spec["realtime"] = opts.realtime
     # The semantic stage reads the label images; presets without it (li) run without labels.
@@ -236,7 +238,7 @@ def run_suite(opts: BenchOptions, suite: Suite | None = None, progress=print) ->
             progress(f"rendering {seq.name} (once; cached in {seq.synthetic['out']})")
             ensure_rendered(seq)
     results = {"suite": suite.name, "runs": opts.runs, "started": datetime.datetime.now().isoformat(timespec="seconds"),
-               "machine": machine(), "mapping": mapping_mode(opts.realtime), "realtime": opts.realtime or None,
+               "machine": machine(), "build": build(), "mapping": mapping_mode(opts.realtime), "realtime": opts.realtime or None,
                "vocabulary": opts.vocabulary, "not_run": list(suite.not_run),
                "sequences": [dataclasses.asdict(s) for s in suite.sequences], "records": [], "peer": None,
                "finished": None}
