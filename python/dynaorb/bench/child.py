@@ -2,10 +2,10 @@
 
 SPEC.json holds RunOptions fields and "core", the fingerprint of the core
 build the benchmark started with (build_info): a child that loads another
-build stops with exit status 3 and says so, before it runs. The stats (as run_dataset returns them,
-without the per-frame lists of the dynamic filter) go to SPEC's "result"
-file. The parent measures this process's peak memory (wait4) and survives
-its crash.
+build stops with exit status 3 and says so, before it runs. The stats (as
+run_dataset returns them, without the per-frame lists of the dynamic
+filter) go to SPEC's "result" file. The parent measures this process's
+peak memory (wait4) and survives its crash.
 """
 from __future__ import annotations
 

@@ -238,7 +238,8 @@ def run_suite(opts: BenchOptions, suite: Suite | None = None, progress=print) ->
             progress(f"rendering {seq.name} (once; cached in {seq.synthetic['out']})")
             ensure_rendered(seq)
     results = {"suite": suite.name, "runs": opts.runs, "started": datetime.datetime.now().isoformat(timespec="seconds"),
-               "machine": machine(), "build": build(), "mapping": mapping_mode(opts.realtime), "realtime": opts.realtime or None,
+               "machine": machine(), "build": build(), "mapping": mapping_mode(opts.realtime),
+               "realtime": opts.realtime or None,
                "vocabulary": opts.vocabulary, "not_run": list(suite.not_run),
                "sequences": [dataclasses.asdict(s) for s in suite.sequences], "records": [], "peer": None,
                "finished": None}
