@@ -5,7 +5,7 @@ build the benchmark started with (build_info): a child that loads another
 build stops with exit status 3 and says so, before it runs. The stats (as
 run_dataset returns them, without the per-frame lists of the dynamic
 filter) go to SPEC's "result" file. The parent measures this process's
-peak memory (wait4) and survives its crash.
+peak memory (its VmHWM, process.run_child) and survives its crash.
 """
 from __future__ import annotations
 
