@@ -187,6 +187,24 @@ def test_peer_failure_is_recorded_and_the_bench_goes_on(tmp_path, data):
                for i in range(2))
 
 
+def test_peer_trajectory_drops_a_repeated_line(tmp_path):
+    """ORB-SLAM3 sometimes saves one frame twice (same stamp, same pose; seen on the synthetic monocular room
+    with movers): the TUM file keeps the first, so its stamps increase and evo reads it."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("orbslam3_worker", orbslam3.WORKER)
+    worker = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(worker)  # stdlib only: pyorbslam3 is imported by its main(), not here
+    pose = "0.1 0.2 0.3 0 0 0 1"
+    (tmp_path / "t.euroc").write_text(f"1050000000.000000 {pose}\n1100000000.000000 {pose}\n"
+                                      f"1100000000.000000 {pose}\n1200000000.000000 {pose}\n")
+    assert worker._euroc_to_tum(str(tmp_path / "t.euroc"), str(tmp_path / "t.tum")) == (3, 1)
+    from dynaorb.evaluation import load_trajectory
+
+    assert list(load_trajectory(tmp_path / "t.tum").timestamps) == [1.05, 1.1, 1.2]
+    assert worker._euroc_to_tum(str(tmp_path / "missing"), str(tmp_path / "e.tum")) == (0, 0)
+
+
 def test_peer_settings_and_manifest(tmp_path, data):
     # EuRoC stereo: raw cameras, T_c1_c2 from our rectification; ORB settings as ours.
     case = orbslam3.PeerCase("euroc", str(data / "euroc" / "V1_01_easy_micro"), "stereo", tmp_path / "euroc")

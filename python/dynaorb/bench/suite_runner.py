@@ -203,7 +203,8 @@ def peer_record(seq: Sequence, out: pathlib.Path, python, vocabulary, timeout_s:
         record.update(_metrics(stats))
         record["trajectory"] = str(out / "trajectory.tum")
         record["stats"] = {k: stats.get(k) for k in ("frames", "tracked_frames", "states", "init_s", "exit",
-                                                      "pyorbslam3", "trajectory_poses", "realtime")}
+                                                      "pyorbslam3", "trajectory_poses", "trajectory_repeats_dropped",
+                                                      "realtime")}
         record.update(frames=stats.get("frames"), tracked_frames=stats.get("tracked_frames"))  # as the seeds suite's
     return keep_record(out, record)
 

@@ -320,6 +320,7 @@ def run(case: PeerCase, python: pathlib.Path, vocabulary: pathlib.Path, timeout_
     stats["peak_rss_mb"] = max(v for v in (child.peak_rss_mb, peer.get("peak_rss_mb_self"), 0.0) if v is not None)
     stats.update({k: peer[k] for k in ("pyorbslam3", "frames", "states", "tracked_frames", "init_s",
                                        "track_call_ms_median", "track_call_ms", "trajectory_poses")})
+    stats["trajectory_repeats_dropped"] = peer.get("trajectory_repeats_dropped")
     stats["realtime"] = peer.get("realtime")
     stats["tracked_fraction"] = peer["tracked_frames"] / max(peer["frames"], 1)
     # Frames over the loop's wall time (image loading included), as dynaorb's runner counts fps.

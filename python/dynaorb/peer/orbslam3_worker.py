@@ -42,18 +42,27 @@ def _read(path: str, flags=cv2.IMREAD_UNCHANGED):
     return image
 
 
-def _euroc_to_tum(src: str, dst: str) -> int:
-    """ORB-SLAM3's EuRoC trajectory (stamp in ns, t, q xyzw) as a TUM file; poses written."""
-    rows = []
+def _euroc_to_tum(src: str, dst: str) -> tuple[int, int]:
+    """ORB-SLAM3's EuRoC trajectory (stamp in ns, t, q xyzw) as a TUM file: (poses written, repeats dropped).
+
+    ORB-SLAM3 (pyorbslam3 0.1.1) sometimes writes one frame's line twice: on the synthetic monocular
+    room with movers, frame 1.10 s, tracked, then "recently lost" with 1.15 s, is saved twice with the
+    same stamp and pose and 1.15 s not at all. A line whose stamp repeats the line before it is
+    dropped (the first is kept), so the file has the increasing stamps a TUM trajectory needs."""
+    rows, repeats = [], 0
     if os.path.isfile(src):
         for line in open(src):
             fields = line.replace(",", " ").split()
             if len(fields) == 8 and not line.startswith("#"):
-                rows.append([float(fields[0]) * 1e-9] + [float(x) for x in fields[1:]])
+                row = [float(fields[0]) * 1e-9] + [float(x) for x in fields[1:]]
+                if rows and row[0] == rows[-1][0]:
+                    repeats += 1
+                    continue
+                rows.append(row)
     with open(dst, "w") as f:
         for r in rows:
             f.write(f"{r[0]:.9f} " + " ".join(f"{x:.9f}" for x in r[1:]) + "\n")
-    return len(rows)
+    return len(rows), repeats
 
 
 def _vm_hwm_mb() -> float | None:
@@ -122,7 +131,7 @@ def main(manifest_path: str) -> int:
     slam.shutdown()
     euroc = manifest["trajectory"] + ".euroc"
     slam.save_trajectory_euroc(euroc)
-    poses = _euroc_to_tum(euroc, manifest["trajectory"])
+    poses, repeats = _euroc_to_tum(euroc, manifest["trajectory"])
     ms = [f["ms"] for f in per_frame]
     result = {
         "pyorbslam3": _version("pyorbslam3"),
@@ -130,6 +139,7 @@ def main(manifest_path: str) -> int:
         "states": dict(states),
         "tracked_frames": states.get("OK", 0),
         "trajectory_poses": poses,
+        "trajectory_repeats_dropped": repeats,
         "init_s": init_s,
         "loop_s": loop_s,
         "track_call_ms_median": statistics.median(ms) if ms else None,
