@@ -1,0 +1,218 @@
+#include "dynaorb/dynamic/label_propagation.h"
+
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+#include <string>
+
+#include "dynaorb/core/stopwatch.h"
+#include "dynaorb/io/errors.h"
+
+namespace dynaorb::dynamic {
+
+namespace {
+
+constexpr double kSameStamp = 1e-6;  // s: stamps round-trip through ROS messages (sec + nsec)
+constexpr float kOutside = 1e6f;     // a displacement that leaves every image: background
+
+std::string size_text(const cv::Mat& m) { return std::to_string(m.cols) + "x" + std::to_string(m.rows); }
+
+bool is_labels(const cv::Mat& m) {
+  return !m.empty() && m.channels() == 1 && (m.depth() == CV_8U || m.depth() == CV_16U);
+}
+
+bool is_grey(const cv::Mat& m) { return !m.empty() && m.type() == CV_8UC1; }
+
+void check_scale(double scale) {
+  if (!(scale > 0 && scale <= 1))
+    throw InputError("label propagation: flow_scale " + std::to_string(scale) + " is not in (0, 1]");
+}
+
+cv::Ptr<cv::DISOpticalFlow> make_dis() { return cv::DISOpticalFlow::create(cv::DISOpticalFlow::PRESET_ULTRAFAST); }
+
+cv::Mat small_of(const cv::Mat& grey, double scale) {
+  if (scale >= 1) return grey.clone();
+  cv::Mat s;
+  cv::resize(grey, s, cv::Size(), scale, scale, cv::INTER_AREA);
+  return s;
+}
+
+// map = pixel grid + displacement (both CV_32F, disp CV_32FC2).
+void grid_plus(const cv::Mat& disp, cv::Mat& map_x, cv::Mat& map_y) {
+  map_x.create(disp.size(), CV_32FC1);
+  map_y.create(disp.size(), CV_32FC1);
+  for (int y = 0; y < disp.rows; ++y) {
+    const cv::Vec2f* d = disp.ptr<cv::Vec2f>(y);
+    float* mx = map_x.ptr<float>(y);
+    float* my = map_y.ptr<float>(y);
+    for (int x = 0; x < disp.cols; ++x) {
+      mx[x] = static_cast<float>(x) + d[x][0];
+      my[x] = static_cast<float>(y) + d[x][1];
+    }
+  }
+}
+
+// disp(p) += flow(p + disp(p)): one more step back along the chain. A
+// position outside the flow's image came from outside: it leaves for good.
+void follow(cv::Mat& disp, const cv::Mat& flow) {
+  cv::Mat map_x, map_y, step;
+  grid_plus(disp, map_x, map_y);
+  cv::remap(flow, step, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(kOutside, kOutside));
+  disp += step;
+}
+
+// The labels at p + disp(p), disp at flow resolution, labels at full size.
+cv::Mat sample_labels(const cv::Mat& labels, const cv::Mat& disp_small) {
+  cv::Mat disp;
+  if (disp_small.size() == labels.size()) {
+    disp = disp_small;
+  } else {
+    cv::resize(disp_small, disp, labels.size(), 0, 0, cv::INTER_LINEAR);
+    const double sx = static_cast<double>(labels.cols) / disp_small.cols;
+    const double sy = static_cast<double>(labels.rows) / disp_small.rows;
+    cv::multiply(disp, cv::Scalar(sx, sy), disp);
+  }
+  cv::Mat map_x, map_y, out;
+  grid_plus(disp, map_x, map_y);
+  cv::remap(labels, out, map_x, map_y, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
+  return out;
+}
+
+}  // namespace
+
+void LabelPropagationOptions::validate() const {
+  check_scale(flow_scale);
+  if (!(max_age_s >= 0) || std::isinf(max_age_s))
+    throw InputError("label propagation: max_age_s must be a finite number of seconds >= 0");
+  if (frames_kept < 1) throw InputError("label propagation: frames_kept must be at least 1");
+}
+
+const char* to_string(FrameLabels::Source source) {
+  switch (source) {
+    case FrameLabels::Source::kFresh: return "fresh";
+    case FrameLabels::Source::kPropagated: return "propagated";
+    case FrameLabels::Source::kAsIs: return "as_is";
+    case FrameLabels::Source::kStale: return "stale";
+    case FrameLabels::Source::kNone: break;
+  }
+  return "none";
+}
+
+// ---------------------------------------------------------------- one pair
+
+LabelPropagator::LabelPropagator(double flow_scale) : scale_(flow_scale) {
+  check_scale(flow_scale);
+  dis_ = make_dis();
+}
+
+cv::Mat LabelPropagator::warp(const cv::Mat& labels, const cv::Mat& src_grey, const cv::Mat& dst_grey, double* ms) {
+  if (ms) *ms = 0;
+  if (!is_labels(labels)) throw InputError("label propagation: labels must be one 8- or 16-bit channel");
+  if (!is_grey(src_grey) || !is_grey(dst_grey))
+    throw InputError("label propagation: the images must be 8-bit grey");
+  if (labels.size() != src_grey.size() || src_grey.size() != dst_grey.size())
+    throw InputError("label propagation needs equal sizes: labels " + size_text(labels) + ", source " +
+                     size_text(src_grey) + ", destination " + size_text(dst_grey));
+  if (cv::countNonZero(labels) == 0) return labels.clone();
+  const auto t0 = Clock::now();
+  cv::Mat flow;
+  dis_->calc(small_of(dst_grey, scale_), small_of(src_grey, scale_), flow);
+  cv::Mat out = sample_labels(labels, flow);
+  if (ms) *ms = ms_since(t0);
+  return out;
+}
+
+// ---------------------------------------------------------------- live frames
+
+LiveLabels::LiveLabels(const LabelPropagationOptions& options) : o_(options) {
+  o_.validate();
+  dis_ = make_dis();
+}
+
+void LiveLabels::add_labels(double stamp, const cv::Mat& labels) {
+  if (!std::isfinite(stamp)) throw InputError("label propagation: a label image's stamp is not finite");
+  if (!is_labels(labels)) throw InputError("label propagation: labels must be one 8- or 16-bit channel");
+  labels_[stamp] = labels.clone();  // the caller may reuse its buffer
+  while (static_cast<int>(labels_.size()) > o_.frames_kept) labels_.erase(labels_.begin());
+}
+
+void LiveLabels::clear() {
+  labels_.clear();
+  frames_.clear();
+}
+
+int LiveLabels::frame_index(double stamp) const {
+  for (int i = static_cast<int>(frames_.size()) - 1; i >= 0; --i)
+    if (std::abs(frames_[i].stamp - stamp) <= kSameStamp) return i;
+  return -1;
+}
+
+void LiveLabels::prune(double stamp) {
+  const double oldest = stamp - o_.max_age_s - kSameStamp;
+  while (!frames_.empty() && (frames_.front().stamp < oldest || static_cast<int>(frames_.size()) > o_.frames_kept))
+    frames_.pop_front();
+  // Label images too old for any later frame, but the newest of them (a
+  // later frame falls back on nothing older anyway).
+  while (labels_.size() > 1 && std::next(labels_.begin())->first < oldest) labels_.erase(labels_.begin());
+}
+
+cv::Mat LiveLabels::carry(const cv::Mat& labels, int from) {
+  const int last = static_cast<int>(frames_.size()) - 1;
+  cv::Mat disp = cv::Mat::zeros(frames_[last].small.size(), CV_32FC2);
+  for (int j = last; j > from; --j) {
+    Frame& f = frames_[j];
+    if (f.flow_to_previous.empty()) dis_->calc(f.small, frames_[j - 1].small, f.flow_to_previous);
+    follow(disp, f.flow_to_previous);
+  }
+  return sample_labels(labels, disp);
+}
+
+FrameLabels LiveLabels::labels_for(double stamp, const cv::Mat& grey) {
+  if (!std::isfinite(stamp)) throw InputError("label propagation: a frame's stamp is not finite");
+  if (!is_grey(grey)) throw InputError("label propagation: the frame's image must be 8-bit grey");
+  // A camera restarted (stamps went back) or another image size: the frames kept are no chain to this one.
+  if (!frames_.empty() && (stamp < frames_.back().stamp - kSameStamp || frames_.back().size != grey.size()))
+    frames_.clear();
+  if (frames_.empty() || std::abs(frames_.back().stamp - stamp) > kSameStamp)
+    frames_.push_back({stamp, small_of(grey, o_.flow_scale), grey.size(), cv::Mat()});
+  prune(stamp);
+
+  FrameLabels out;
+  // The newest label image not later than the frame, and the one after it.
+  auto after = labels_.upper_bound(stamp + kSameStamp);
+  auto newest = after;
+  const bool have_newest = newest != labels_.begin();
+  if (have_newest) --newest;
+  if (have_newest && stamp - newest->first <= o_.max_age_s + kSameStamp && newest->second.size() == grey.size()) {
+    const double age = stamp - newest->first;
+    const int from = frame_index(newest->first);
+    out.age_s = std::max(0.0, age);
+    if (age <= kSameStamp) {
+      out.source = FrameLabels::Source::kFresh;
+      out.labels = newest->second;
+    } else if (!o_.propagate || from < 0) {
+      // Not moved, or its image was not seen here (dropped before tracking): as it is.
+      out.source = FrameLabels::Source::kAsIs;
+      out.labels = newest->second;
+    } else {
+      out.source = FrameLabels::Source::kPropagated;
+      if (cv::countNonZero(newest->second) == 0) {
+        out.labels = newest->second;  // only background: any flow keeps it so
+      } else {
+        const auto t0 = Clock::now();
+        out.labels = carry(newest->second, from);
+        out.propagate_ms = ms_since(t0);
+      }
+    }
+  } else if (after != labels_.end() && after->first - stamp <= o_.max_age_s && after->second.size() == grey.size()) {
+    // Only labels of a later image (this frame tracked late): as they are.
+    out.source = FrameLabels::Source::kAsIs;
+    out.labels = after->second;
+    out.age_s = stamp - after->first;
+  } else {
+    out.source = labels_.empty() ? FrameLabels::Source::kNone : FrameLabels::Source::kStale;
+  }
+  ++counts_[static_cast<int>(out.source)];
+  return out;
+}
+
+}  // namespace dynaorb::dynamic
