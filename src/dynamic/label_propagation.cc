@@ -138,6 +138,7 @@ void LiveLabels::add_labels(double stamp, const cv::Mat& labels) {
 void LiveLabels::clear() {
   labels_.clear();
   frames_.clear();
+  have_disp_ = false;
 }
 
 int LiveLabels::frame_index(double stamp) const {
@@ -155,23 +156,39 @@ void LiveLabels::prune(double stamp) {
   while (labels_.size() > 1 && std::next(labels_.begin())->first < oldest) labels_.erase(labels_.begin());
 }
 
+const cv::Mat& LiveLabels::flow_to_previous(int j) {
+  Frame& f = frames_[j];
+  if (f.flow_to_previous.empty()) dis_->calc(f.small, frames_[j - 1].small, f.flow_to_previous);
+  return f.flow_to_previous;
+}
+
 cv::Mat LiveLabels::carry(const cv::Mat& labels, int from) {
   const int last = static_cast<int>(frames_.size()) - 1;
-  cv::Mat disp = cv::Mat::zeros(frames_[last].small.size(), CV_32FC2);
-  for (int j = last; j > from; --j) {
-    Frame& f = frames_[j];
-    if (f.flow_to_previous.empty()) dis_->calc(f.small, frames_[j - 1].small, f.flow_to_previous);
-    follow(disp, f.flow_to_previous);
+  const double source = frames_[from].stamp;
+  if (have_disp_ && std::abs(disp_source_ - source) <= kSameStamp &&
+      std::abs(disp_frame_ - frames_[last - 1].stamp) <= kSameStamp && last - 1 >= from) {
+    // The same labels as the last frame's: one more step, this frame's flow then the chain so far.
+    cv::Mat disp = flow_to_previous(last).clone();
+    follow(disp, disp_);
+    disp_ = disp;
+  } else {
+    disp_ = cv::Mat::zeros(frames_[last].small.size(), CV_32FC2);
+    for (int j = last; j > from; --j) follow(disp_, flow_to_previous(j));
   }
-  return sample_labels(labels, disp);
+  disp_source_ = source;
+  disp_frame_ = frames_[last].stamp;
+  have_disp_ = true;
+  return sample_labels(labels, disp_);
 }
 
 FrameLabels LiveLabels::labels_for(double stamp, const cv::Mat& grey) {
   if (!std::isfinite(stamp)) throw InputError("label propagation: a frame's stamp is not finite");
   if (!is_grey(grey)) throw InputError("label propagation: the frame's image must be 8-bit grey");
   // A camera restarted (stamps went back) or another image size: the frames kept are no chain to this one.
-  if (!frames_.empty() && (stamp < frames_.back().stamp - kSameStamp || frames_.back().size != grey.size()))
+  if (!frames_.empty() && (stamp < frames_.back().stamp - kSameStamp || frames_.back().size != grey.size())) {
     frames_.clear();
+    have_disp_ = false;
+  }
   if (frames_.empty() || std::abs(frames_.back().stamp - stamp) > kSameStamp)
     frames_.push_back({stamp, small_of(grey, o_.flow_scale), grey.size(), cv::Mat()});
   prune(stamp);

@@ -98,11 +98,18 @@ class LiveLabels {
   std::map<double, cv::Mat> labels_;  // by the labelled image's stamp
   std::deque<Frame> frames_;          // recent frames, oldest first
   long counts_[5] = {0, 0, 0, 0, 0};
+  // The chained displacement from the last frame given propagated labels
+  // back to their labelled frame (small, CV_32FC2): the next frame with the
+  // same labels extends it by its own flow instead of chaining them all again.
+  cv::Mat disp_;
+  double disp_source_ = 0, disp_frame_ = 0;
+  bool have_disp_ = false;
 
   int frame_index(double stamp) const;  // -1: not kept
   void prune(double stamp);
   // labels of frames_[from] moved to frames_.back() (from < size - 1).
   cv::Mat carry(const cv::Mat& labels, int from);
+  const cv::Mat& flow_to_previous(int j);
 };
 
 }  // namespace dynaorb::dynamic
