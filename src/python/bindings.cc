@@ -19,45 +19,14 @@
 #include "dynaorb/io/trajectory_io.h"
 #include "dynaorb/system.h"
 #include "dynaorb/vocab/vocabulary.h"
+#include "label_bindings.h"
+#include "numpy_mat.h"
 #include "option_bindings.h"
 
 namespace py = pybind11;
 using namespace dynaorb;
 
 namespace {
-
-// Wraps a numpy array as a cv::Mat without copying; the array must outlive the Mat.
-cv::Mat as_mat(const py::object& obj, const char* what) {
-  if (obj.is_none()) return cv::Mat();
-  auto arr = py::array::ensure(obj, py::array::c_style);
-  if (!arr) throw InputError(std::string(what) + ": expected a numpy array");
-  int depth;
-  const py::dtype dt = arr.dtype();
-  if (dt.is(py::dtype::of<uint8_t>())) depth = CV_8U;
-  else if (dt.is(py::dtype::of<uint16_t>())) depth = CV_16U;
-  else if (dt.is(py::dtype::of<float>())) depth = CV_32F;
-  else if (dt.is(py::dtype::of<int32_t>())) depth = CV_32S;
-  else throw InputError(std::string(what) + ": dtype " + py::str(dt.attr("name")).cast<std::string>() + " is not supported");
-  if (arr.ndim() != 2 && arr.ndim() != 3) throw InputError(std::string(what) + ": expected a 2-D or 3-D array");
-  const int channels = arr.ndim() == 3 ? static_cast<int>(arr.shape(2)) : 1;
-  if (channels < 1 || channels > 4) throw InputError(std::string(what) + ": expected 1 to 4 channels");
-  return cv::Mat(static_cast<int>(arr.shape(0)), static_cast<int>(arr.shape(1)), CV_MAKETYPE(depth, channels),
-                 const_cast<void*>(arr.data()));
-}
-
-py::object to_numpy(const cv::Mat& m) {
-  if (m.empty()) return py::none();
-  cv::Mat c = m.isContinuous() ? m : m.clone();
-  std::vector<py::ssize_t> shape = {c.rows, c.cols};
-  if (c.channels() > 1) shape.push_back(c.channels());
-  switch (c.depth()) {
-    case CV_8U: return py::array_t<uint8_t>(shape, c.ptr<uint8_t>());
-    case CV_16U: return py::array_t<uint16_t>(shape, c.ptr<uint16_t>());
-    case CV_32F: return py::array_t<float>(shape, c.ptr<float>());
-    case CV_64F: return py::array_t<double>(shape, c.ptr<double>());
-    default: throw std::runtime_error("unsupported cv::Mat depth");
-  }
-}
 
 py::tuple trajectory_to_numpy(const Trajectory& t) {
   py::array_t<double> stamps(static_cast<py::ssize_t>(t.size()));
@@ -282,6 +251,7 @@ PYBIND11_MODULE(_core, m) {
       "System's extractor with the settings' ORBextractor parameters (no undistortion).");
 
   bind_options(m);
+  bind_labels(m);
 
   py::class_<dynamic::DynamicFilterOptions>(
       m, "DynamicFilterOptions",
