@@ -12,6 +12,8 @@ def cmd_run(args) -> int:
     stats = run_dataset(RunOptions(kind=args.kind, path=args.path, sensor=args.sensor, config=args.config,
                                    out=args.out, dynamic=args.dynamic, masks=args.masks,
                                    labels=args.labels, save_masks=args.save_masks,
+                                   labels_delay=args.labels_delay,
+                                   propagate_labels=not args.no_label_propagation,
                                    vocabulary=args.vocabulary,
                                    segment=args.segment, segment_mode=args.segment_mode,
                                    segment_threads=args.segment_threads, segment_nice=args.segment_nice,

@@ -26,6 +26,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="label images (class ids) named like the frames for the dynamic filter's semantic stage: "
                         "a `dynaorb segment` folder (labels.json names the movable ids) or a folder in the "
                         "preset's label set (e.g. a synthetic sequence's labels/, PASCAL VOC ids)")
+    r.add_argument("--labels-delay", type=int, default=0, metavar="N",
+                   help="emulate a segmentation network N frames behind the camera on the --labels folder: "
+                        "each frame gets the newest labels it would have finished, moved by optical flow "
+                        "(default 0: every frame its own labels)")
+    r.add_argument("--no-label-propagation", action="store_true",
+                   help="with --labels-delay (or --segment, async): use older labels as they are, not moved "
+                        "by optical flow")
     r.add_argument("--save-masks", metavar="DIR",
                    help="write the dynamic filter's mask of every frame here (PNG named like the frame)")
     r.add_argument("--masks", help="folder of per-frame exclusion masks / label images named like the frames "

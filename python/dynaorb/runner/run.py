@@ -27,6 +27,7 @@ import numpy as np
 
 from dynaorb import core
 from dynaorb.runner.frames import readable_frames
+from dynaorb.runner.label_delay import DelayedLabels
 from dynaorb.runner.masks import LabelFolder, MaskFolder
 from dynaorb.runner.pacing import Pacer
 from dynaorb.segmentation.labels import PASCAL_VOC_MOVABLE
@@ -74,6 +75,12 @@ class RunOptions:
     # Label images (class ids) named like the frames, for the filter's semantic
     # stage: a `dynaorb segment` folder (labels.json) or e.g. a synthetic labels/.
     labels: str | None = None
+    # Emulate a segmentation network this many frames behind the camera on the
+    # label folder (runner/label_delay.py; 0: every frame its own labels). The
+    # older labels (these, and --segment's asynchronous ones) are moved by
+    # optical flow unless propagate_labels is False.
+    labels_delay: int = 0
+    propagate_labels: bool = True
     save_masks: str | None = None   # the filter's dynamic mask per frame, as PNG named like the frame
     # Exclusion masks named like the frames (ground-truth masks, a mask cache): kept out of tracking.
     masks: str | None = None
@@ -219,6 +226,7 @@ def _semantic(opts: RunOptions):
     segmenter = Segmenter(resolve_model(opts.segment), threads=opts.segment_threads)
     return segmenter, SemanticMasks(segmenter, SemanticOptions(mode=opts.segment_mode,
                                                                 max_age_frames=opts.max_mask_age,
+                                                                propagate=opts.propagate_labels,
                                                                 nice=opts.segment_nice))
 
 
@@ -394,6 +402,10 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
         raise ValueError("--save-masks writes the dynamic filter's masks: give a --dynamic preset with stages "
                          "for this sensor")
     labels_folder = LabelFolder(opts.labels) if opts.labels else None
+    if opts.labels_delay and not labels_folder:
+        raise ValueError("--labels-delay emulates a network on a label folder: give --labels")
+    delayed = (DelayedLabels(opts.labels_delay, opts.propagate_labels, opts.max_mask_age)
+               if opts.labels_delay else None)
     if dynamic_on:
         # Label ids only mean something in the network's own label set.
         if labels_folder is not None and labels_folder.movable is not None:
@@ -434,6 +446,8 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
     for i, frame in readable_frames(provider, skipped, opts.progress, f"{opts.kind} {pathlib.Path(opts.path).name}"):
         mask = masks.for_image(frame.image_path, frame.image.shape[:2]) if masks else None
         labels = labels_folder.for_image(frame.image_path, frame.image.shape[:2]) if labels_folder else None
+        if delayed is not None:
+            labels = delayed.labels_for(i, labels, frame.image)
         if semantic is not None:
             seg = semantic.labels_for(i, frame.image)
             mask_ages.append(seg.age)
@@ -560,6 +574,8 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
         "frames_with_labels": frames_with_labels,
         "masks_dropped_by_core": int(counters["masks_dropped"]),
     }
+    if delayed is not None:
+        stats["labels_delay"] = delayed.summary()
     if semantic is not None:
         # mask_age_per_frame: frames since the network saw the labels' image; -1: no labels.
         stats["segmentation"] = {"model": segmenter.card.name, **semantic.summary(),

@@ -18,7 +18,6 @@ import time
 import numpy as np
 
 from dynaorb.segmentation.priority import DEFAULT_NICE, check_nice, lower_thread_priority
-from dynaorb.segmentation.propagation import to_grey
 
 log = logging.getLogger(__name__)
 
@@ -27,7 +26,6 @@ log = logging.getLogger(__name__)
 class SegmentResult:
     index: int               # frame the labels belong to
     labels: np.ndarray
-    grey: np.ndarray         # that frame's grey image, for propagation
     inference_ms: float
     total_ms: float
     done_at: float           # time.monotonic() when it finished
@@ -87,8 +85,7 @@ class AsyncSegmenter:
             result = None
             try:
                 seg = self.segmenter.segment(image)
-                result = SegmentResult(index, seg.labels, to_grey(image), seg.inference_ms, seg.total_ms,
-                                       time.monotonic())
+                result = SegmentResult(index, seg.labels, seg.inference_ms, seg.total_ms, time.monotonic())
             except Exception as exc:  # the network must never take SLAM down
                 with self._cv:
                     self.failures += 1

@@ -2,9 +2,10 @@
 
 mode "sync": the network runs on every frame before it is tracked
 (repeatable, slow). mode "async": the network runs on its own thread on the
-newest frame; a frame without a fresh result gets the last labels propagated
-to it by optical flow, and its age (frames since the network saw the image
-the labels come from) is recorded. Labels older than max_age_frames are not
+newest frame; a frame without a fresh result gets the newest labels moved to
+it by optical flow along the frames since (the core's LiveLabels, as the ROS
+node does), and its age (frames since the network saw the image the labels
+come from) is recorded. Labels older than max_age_frames are not
 used: the frame runs geometric-only, which is logged once and counted.
 The first frame waits for its own labels (at most first_wait_s): tracking
 builds its first map from that frame, and movers' points taken into it stay
@@ -24,7 +25,7 @@ import numpy as np
 
 from dynaorb.segmentation.async_segmenter import AsyncSegmenter
 from dynaorb.segmentation.priority import DEFAULT_NICE, check_nice
-from dynaorb.segmentation.propagation import FlowPropagator, to_grey
+from dynaorb.segmentation.propagation import to_grey
 
 log = logging.getLogger(__name__)
 
@@ -33,7 +34,7 @@ log = logging.getLogger(__name__)
 class SemanticOptions:
     mode: str = "async"          # async | sync
     max_age_frames: int = 30     # older labels are dropped (about 1 s at 30 Hz)
-    propagate: bool = True       # warp old labels by optical flow (else use them as they are)
+    propagate: bool = True       # move old labels by optical flow (else use them as they are)
     flow_scale: float = 0.5      # resolution of the flow, relative to the image
     # async: the network thread's nice above the caller's (0-19), so tracking
     # gets the cores first on a busy machine (see async_segmenter).
@@ -57,7 +58,7 @@ class SemanticOptions:
 @dataclasses.dataclass
 class FrameLabels:
     labels: np.ndarray | None
-    source: str                  # fresh | propagated | stale | none
+    source: str                  # fresh | propagated | as_is (propagate off) | stale | none
     age: int                     # frames; -1 without labels
 
 
@@ -65,7 +66,6 @@ class SemanticMasks:
     def __init__(self, segmenter, options: SemanticOptions | None = None):
         self.segmenter = segmenter
         self.options = (options or SemanticOptions()).validate()
-        self.propagator = FlowPropagator(self.options.flow_scale) if self.options.propagate else None
         self.worker = (AsyncSegmenter(segmenter, nice=self.options.nice)
                        if self.options.mode == "async" else None)
         self.counts = collections.Counter()
@@ -75,8 +75,14 @@ class SemanticMasks:
         self.propagate_skipped = 0           # propagations of background-only labels, skipped
         self.sync_failures = 0
         self._seen_result = -1               # frame index of the last network result taken
-        self._prev: tuple[np.ndarray, np.ndarray] | None = None   # labels, grey of the previous frame
-        self._source_index = -1              # frame the previous labels come from
+        # Which labels each frame gets, keyed by frame index (max_age in frames).
+        self._live = None
+        if self.worker is not None:
+            from dynaorb import _core
+
+            self._live = _core.LiveLabels(propagate=self.options.propagate, flow_scale=self.options.flow_scale,
+                                          max_age=float(self.options.max_age_frames),
+                                          frames_kept=max(64, self.options.max_age_frames + 2))
         self._stale_logged = False
         self.first_wait_ms: float | None = None   # how long the first frame waited for its labels
         self.first_wait_timed_out = False
@@ -100,20 +106,6 @@ class SemanticMasks:
         self.inference_ms.append(seg.inference_ms)
         return FrameLabels(seg.labels, "fresh", 0)
 
-    def _warp(self, labels, src_grey, dst_grey):
-        if self.propagator is None or src_grey is dst_grey:
-            return labels
-        if cv2.countNonZero(labels) == 0:
-            # Only background: any flow carries it to background (pixels from
-            # outside the image get background too). No flow on scenes
-            # without objects (2 ms per frame at 752x480).
-            self.propagate_skipped += 1
-            return labels
-        t = time.perf_counter()
-        out = self.propagator.warp(labels, src_grey, dst_grey)
-        self.propagate_ms.append((time.perf_counter() - t) * 1e3)
-        return out
-
     def _async(self, index: int, image: np.ndarray) -> FrameLabels:
         self.worker.submit(index, image)
         grey = to_grey(image)
@@ -121,28 +113,26 @@ class SemanticMasks:
             self._wait_first()
         result = self.worker.latest()
         if result is not None and result.index > self._seen_result:
-            # A new network result: start from it (it may be a few frames old).
+            # A new network result (it may be a few frames old).
             self._seen_result = result.index
             self.inference_ms.append(result.inference_ms)
-            src_labels, src_grey, self._source_index = result.labels, result.grey, result.index
-        elif self._prev is not None:
-            src_labels, src_grey = self._prev
-        else:  # no result yet, or the last one is too old
-            return FrameLabels(None, "stale" if self._source_index >= 0 else "none", -1)
-        age = index - self._source_index
-        if age > self.options.max_age_frames:
-            if not self._stale_logged:
-                self._stale_logged = True
-                log.warning("segmentation is %d frames behind (limit %d): SLAM continues geometric-only "
-                            "until a fresh mask arrives (counted as 'stale')", age, self.options.max_age_frames)
-            self._prev = None
-            return FrameLabels(None, "stale", -1)
-        if src_grey.shape != grey.shape:
-            self._prev = None
-            return FrameLabels(None, "none", -1)
-        labels = src_labels if age == 0 else self._warp(src_labels, src_grey, grey)
-        self._prev = (labels, grey)
-        return FrameLabels(labels, "fresh" if age == 0 else "propagated", age)
+            self._live.add_labels(float(result.index), result.labels)
+        labels, source, age, ms = self._live.labels_for(float(index), grey)
+        if source == "stale" and not self._stale_logged:
+            self._stale_logged = True
+            log.warning("segmentation is %d frames behind (limit %d): SLAM continues geometric-only "
+                        "until a fresh mask arrives (counted as 'stale')", index - self._seen_result,
+                        self.options.max_age_frames)
+        if labels is None:
+            return FrameLabels(None, source, -1)
+        if source == "propagated":
+            if ms > 0:
+                self.propagate_ms.append(ms)
+            else:
+                # Only background: any flow carries it to background. No flow
+                # on scenes without objects (2 ms per frame at 752x480).
+                self.propagate_skipped += 1
+        return FrameLabels(labels, source, int(round(age)))
 
     def _wait_first(self) -> None:
         """Wait for the network to finish the first frame (a failing network finishes at once)."""
