@@ -176,6 +176,10 @@ NodeConfig read_config(const ros::NodeHandle& pnh) {
   n.max_label_age = seconds_param_or(pnh, "max_label_age", n.max_label_age);
   n.first_labels_timeout = seconds_param_or(pnh, "first_labels_timeout", n.first_labels_timeout, " (0: no wait)");
   n.expect_labels = param_or(pnh, "expect_labels", n.expect_labels);
+  n.propagate_labels = param_or(pnh, "propagate_labels", n.propagate_labels);
+  n.label_flow_scale = param_or(pnh, "label_flow_scale", n.label_flow_scale);
+  if (!(n.label_flow_scale > 0 && n.label_flow_scale <= 1))
+    throw InputError("~label_flow_scale must be in (0, 1] (the flow's resolution relative to the image)");
   if (n.max_frames_waiting < 1) throw InputError("~max_frames_waiting must be >= 1");
   n.movable_ids_given = read_param(pnh, "movable_ids", n.movable_ids);
   if (!n.movable_ids_given) n.movable_ids = kPascalVocMovable;
@@ -256,7 +260,9 @@ std::string describe(const NodeConfig& cfg) {
       << (n.external_odometry ? " (odom -> base from TF)" : "") << "; " << (n.approximate_sync ? "approximate" : "exact")
       << " sync, queue " << n.queue_size << (n.rectify ? ", rectifying raw stereo" : "")
       << (n.use_camera_info ? ", intrinsics from camera_info" : "")
-      << (n.use_labels ? (n.wait_for_labels ? ", labels (waited for)" : ", labels (newest" + first_wait + ")") : ", no labels")
+      << (n.use_labels ? (n.wait_for_labels ? ", labels (waited for)"
+                                            : ", labels (newest" + first_wait +
+                                                  (n.propagate_labels ? "; moved by optical flow" : "; as they are") + ")") : ", no labels")
       << "; cloud " << (n.publish_cloud ? "max depth " + std::to_string(n.cloud.max_depth) + " m, stride " +
                                                std::to_string(n.cloud.stride)
                                          : "off");

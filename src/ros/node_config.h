@@ -44,6 +44,12 @@ struct NodeOptions {
   int max_frames_waiting = 30;    //   at most this many frames wait; older ones go without labels
   double label_wait_timeout = 1.0;  //   nor longer than this (wall-clock s): labels that never come
   double max_label_age = 0.5;     // s: newest labels older than this are not used (live)
+  // Live: labels older than their frame are moved onto it by optical flow
+  // (dynamic::LiveLabels: chained DIS flows between the frames since the
+  // labelled image), at this resolution relative to the image; false: used
+  // as they are.
+  bool propagate_labels = true;
+  double label_flow_scale = 0.5;
   // Live: while a labels publisher is connected and none of its labels have
   // come yet, frames are held (at most max_frames_waiting) and wait for the
   // first labels, at most this long (wall-clock s; 0: no wait). Tracking

@@ -78,6 +78,13 @@ SlamNode::SlamNode(ros::NodeHandle nh, ros::NodeHandle pnh)
     cv::initUndistortRectifyMap(q.K_r, q.D_r, q.R_r, q.P_r.colRange(0, 3), size, CV_16SC2, rect_r1_, rect_r2_);
   }
   if (!n.use_camera_info) ensure_system();
+  if (n.use_labels && !n.wait_for_labels) {
+    dynamic::LabelPropagationOptions lo;
+    lo.propagate = n.propagate_labels;
+    lo.flow_scale = n.label_flow_scale;
+    lo.max_age_s = n.max_label_age;
+    live_labels_ = std::make_unique<dynamic::LiveLabels>(lo);
+  }
 
   pub_odom_ = nh_.advertise<nav_msgs::Odometry>("odom", 50);
   pub_map_points_ = nh_.advertise<sensor_msgs::PointCloud2>("map_points", 1, true);
@@ -215,6 +222,7 @@ void SlamNode::on_labels(const sensor_msgs::ImageConstPtr& msg) {
   }
   labels_[msg->header.stamp.toSec()] = labels;
   while (labels_.size() > 64) labels_.erase(labels_.begin());
+  if (live_labels_) live_labels_->add_labels(msg->header.stamp.toSec(), labels);
   if (cfg_.node.wait_for_labels) {
     drain_waiting(false);
   } else if (!first_labels_done_) {
@@ -347,19 +355,27 @@ const cv::Mat* SlamNode::nearest_labels(double stamp, double& age) const {
 }
 
 void SlamNode::process_live(const FrameInput& frame) {
-  // Live: the labels nearest in time, if recent enough (a segmentation
-  // server drops frames it cannot keep up with).
-  double best_age = 0.0;
-  const cv::Mat* best = nearest_labels(frame.header.stamp.toSec(), best_age);
-  if (!best) {
-    ++counters_.labels_missing;
-    process(frame, cv::Mat(), -1.0);
-  } else if (std::abs(best_age) > cfg_.node.max_label_age) {
-    ++counters_.labels_stale;
-    process(frame, cv::Mat(), -1.0);
-  } else {
-    process(frame, *best, best_age);
+  // Live: the newest labels not later than the frame, moved onto it along
+  // the frames since (a segmentation server drops frames it cannot keep up
+  // with), if recent enough.
+  dynamic::FrameLabels l;
+  try {
+    l = live_labels_->labels_for(frame.header.stamp.toSec(), grey_of(frame.image, cfg_.settings.camera.rgb));
+  } catch (const std::exception& e) {  // a non-finite stamp: the core refuses the frame itself
+    ROS_WARN_THROTTLE(5.0, "dynaorb_node: no labels for frame %.6f: %s", frame.header.stamp.toSec(), e.what());
   }
+  using Source = dynamic::FrameLabels::Source;
+  switch (l.source) {
+    case Source::kNone: ++counters_.labels_missing; break;
+    case Source::kStale: ++counters_.labels_stale; break;
+    case Source::kPropagated:
+      ++counters_.labels_propagated;
+      counters_.label_propagation_us += static_cast<long>(l.propagate_ms * 1000.0);
+      break;
+    case Source::kAsIs: ++counters_.labels_as_is; break;
+    case Source::kFresh: break;
+  }
+  process(frame, l.labels, l.labels.empty() ? -1.0 : l.age_s);
 }
 
 void SlamNode::drain_waiting(bool timed_out) {
@@ -788,7 +804,9 @@ std::string SlamNode::stats_json() const {
       << ", \"waiting_for_camera_info\": " << c.waiting_for_camera_info.load()
       << ", \"labels_in\": " << c.labels_in.load() << ", \"labels_unreadable\": " << c.labels_unreadable.load()
       << ", \"labels_used\": " << c.labels_used.load() << ", \"labels_missing\": " << c.labels_missing.load()
-      << ", \"labels_stale\": " << c.labels_stale.load()
+      << ", \"labels_stale\": " << c.labels_stale.load() << ", \"labels_propagated\": " << c.labels_propagated.load()
+      << ", \"labels_as_is\": " << c.labels_as_is.load()
+      << ", \"label_propagation_ms_total\": " << c.label_propagation_us.load() / 1000.0
       << ", \"skipped_before_labels\": " << c.skipped_before_labels.load()
       << ", \"first_labels_timed_out\": " << c.first_labels_timed_out.load() << ", \"tf_failures\": " << c.tf_failures.load()
       << ", \"clouds\": " << c.clouds.load() << ", \"cloud_failures\": " << c.cloud_failures.load()

@@ -40,6 +40,7 @@
 #include <mutex>
 
 #include "dynaorb/MapFile.h"
+#include "dynaorb/dynamic/label_propagation.h"
 #include "dynaorb/system.h"
 #include "node_config.h"
 #include "support/dense_cloud.h"
@@ -59,6 +60,9 @@ struct FrameInput {
 struct NodeCounters {
   std::atomic<long> frames_in{0}, unreadable{0}, waiting_for_camera_info{0};
   std::atomic<long> labels_in{0}, labels_unreadable{0}, labels_used{0}, labels_missing{0}, labels_stale{0};
+  // Live: frames given older labels moved by optical flow (~propagate_labels),
+  // given them as they are, and the flows' total time (microseconds).
+  std::atomic<long> labels_propagated{0}, labels_as_is{0}, label_propagation_us{0};
   // Live: frames answered as skipped while waiting for the first labels
   // (~first_labels_timeout), and waits that ended without labels.
   std::atomic<long> skipped_before_labels{0}, first_labels_timed_out{0};
@@ -88,7 +92,8 @@ class SlamNode {
   // Labels join: frames wait for theirs (~wait_for_labels) or take the newest.
   void offer(FrameInput frame);
   void drain_waiting(bool timed_out);
-  // Live: the newest labels within ~max_label_age, or none (counted).
+  // Live: the newest labels within ~max_label_age (moved onto the frame by
+  // optical flow with ~propagate_labels), or none (counted).
   void process_live(const FrameInput& frame);
   // The labels nearest in time to `stamp` (nullptr: none yet); age = stamp - theirs.
   const cv::Mat* nearest_labels(double stamp, double& age) const;
@@ -142,6 +147,7 @@ class SlamNode {
   ros::Subscriber sub_mono_, sub_labels_, sub_info_left_, sub_info_right_;
   sensor_msgs::CameraInfoConstPtr info_left_, info_right_;
   std::map<double, cv::Mat> labels_;  // by stamp, newest kept
+  std::unique_ptr<dynamic::LiveLabels> live_labels_;  // live: which labels each frame gets
   // Frames waiting for labels: each for its own (~wait_for_labels), or live
   // all for the first labels (~first_labels_timeout).
   std::deque<std::pair<FrameInput, ros::WallTime>> waiting_;

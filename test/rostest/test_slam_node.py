@@ -329,6 +329,12 @@ class SlamNodeTest(unittest.TestCase):
             skipped = self.skipped()
             self.assertEqual(len(skipped), self.stats["skipped_before_labels"])
             self.assertTrue(all(k.header.stamp < first.header.stamp for k in skipped))
+            # The network lags the camera: frames take older labels moved onto them by optical flow
+            # (~propagate_labels), never labels from beyond ~max_label_age.
+            self.assertGreater(self.stats["labels_propagated"], 0)
+            self.assertGreater(self.stats["label_propagation_ms_total"], 0)
+            ages = [s.label_age for s in self.status if s.mask_used]
+            self.assertTrue(all(-0.5 <= a <= 0.5 for a in ages), ages)
         elif self.labels_mode == "bag":
             self.assertEqual(self.stats["labels_used"], self.frames)
             self.assertTrue(all(s.mask_used for s in self.status))

@@ -16,6 +16,7 @@ REFUSED = {
     "label_wait_timeout": ("-1.0", "~label_wait_timeout must be a finite number of seconds >= 0"),
     "first_labels_timeout": ("-2.0", "~first_labels_timeout must be a finite number of seconds >= 0"),
     "max_frames_waiting": ("0", "~max_frames_waiting must be >= 1"),
+    "label_flow_scale": ("1.5", "~label_flow_scale must be in (0, 1]"),
     "queue_size": ("0", "~queue_size must be >= 1"),
     # The core's options (~tracker/, ~mapping/, ~loop/), checked by their own validate().
     "tracker/min_pose_inliers": ("-1", "tracker option 'min_pose_inliers' is -1"),
