@@ -367,7 +367,13 @@ void SlamNode::process_live(const FrameInput& frame) {
   using Source = dynamic::FrameLabels::Source;
   switch (l.source) {
     case Source::kNone: ++counters_.labels_missing; break;
-    case Source::kStale: ++counters_.labels_stale; break;
+    case Source::kStale:
+      ++counters_.labels_stale;
+      if (!labels_.empty() && labels_.rbegin()->second.size() != frame.image.size())
+        ROS_WARN_THROTTLE(5.0, "dynaorb_node: labels of %dx%d are not used on %dx%d images (counted as stale)",
+                          labels_.rbegin()->second.cols, labels_.rbegin()->second.rows, frame.image.cols,
+                          frame.image.rows);
+      break;
     case Source::kPropagated:
       ++counters_.labels_propagated;
       counters_.label_propagation_us += static_cast<long>(l.propagate_ms * 1000.0);

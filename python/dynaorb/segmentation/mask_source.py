@@ -20,7 +20,6 @@ import math
 import statistics
 import time
 
-import cv2
 import numpy as np
 
 from dynaorb.segmentation.async_segmenter import AsyncSegmenter
