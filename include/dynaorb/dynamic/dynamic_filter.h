@@ -71,7 +71,10 @@ struct DynamicFilterOptions {
   // the filter alone 12.2 -> 9.3 ms (RGB-D) and 8.4 -> 6.3 ms (mono), as the
   // detection no longer shares its core. Before the motion cues' worker (3
   // runs each) the overlap had gained 36.3 -> 33.0 ms (mono) and 38.0 ->
-  // 34.4 ms (RGB-D). On 4 or more cores: not measured here.
+  // 34.4 ms (RGB-D). Paced as well (`--realtime`, the cores idle between
+  // frames): synthetic mono with movers 10.3-12.5 ms overlapped against
+  // 8.2-12.0 not (5 + 5 interleaved runs, ATE the same). On 4 or more
+  // cores: not measured here.
   int overlap_extraction = -1;
   bool overlaps_extraction(unsigned hardware_threads) const;
 
