@@ -30,11 +30,11 @@ class DelayedLabels:
         if delay > max_age:
             raise ValueError(f"labels delay {delay} exceeds the labels' maximum age ({max_age} frames): "
                              "no frame would get labels")
-        from dynaorb import _core
+        from dynaorb import core
 
         self.delay = delay
         self.propagate = propagate
-        self._live = _core.LiveLabels(propagate=propagate, flow_scale=flow_scale, max_age=float(max_age),
+        self._live = core().LiveLabels(propagate=propagate, flow_scale=flow_scale, max_age=float(max_age),
                                       frames_kept=max(64, max_age + 2))
         self._pending: dict[int, np.ndarray | None] = {}   # frames' labels the emulated network is "working on"
         self._delivered = -1

@@ -77,9 +77,9 @@ class SemanticMasks:
         # Which labels each frame gets, keyed by frame index (max_age in frames).
         self._live = None
         if self.worker is not None:
-            from dynaorb import _core
+            from dynaorb import core
 
-            self._live = _core.LiveLabels(propagate=self.options.propagate, flow_scale=self.options.flow_scale,
+            self._live = core().LiveLabels(propagate=self.options.propagate, flow_scale=self.options.flow_scale,
                                           max_age=float(self.options.max_age_frames),
                                           frames_kept=max(64, self.options.max_age_frames + 2))
         self._stale_logged = False

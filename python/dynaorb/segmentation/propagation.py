@@ -29,10 +29,10 @@ class FlowPropagator:
     def __init__(self, scale: float = 0.5):
         if not 0 < scale <= 1:
             raise ValueError(f"propagation scale {scale} is not in (0, 1]")
-        from dynaorb import _core
+        from dynaorb import core
 
         self.scale = scale
-        self._core = _core.LabelPropagator(scale)
+        self._core = core().LabelPropagator(scale)
 
     def warp(self, labels: np.ndarray, src_grey: np.ndarray, dst_grey: np.ndarray) -> np.ndarray:
         """labels of the source frame -> labels of the destination frame (same size)."""
