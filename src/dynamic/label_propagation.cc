@@ -172,8 +172,8 @@ cv::Mat LiveLabels::carry(const cv::Mat& labels, int from) {
     follow(disp, disp_);
     disp_ = disp;
   } else {
-    disp_ = cv::Mat::zeros(frames_[last].small.size(), CV_32FC2);
-    for (int j = last; j > from; --j) follow(disp_, flow_to_previous(j));
+    disp_ = flow_to_previous(last).clone();  // the first step from the pixel grid: the flow itself
+    for (int j = last - 1; j > from; --j) follow(disp_, flow_to_previous(j));
   }
   disp_source_ = source;
   disp_frame_ = frames_[last].stamp;
