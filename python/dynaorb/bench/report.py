@@ -62,6 +62,7 @@ def aggregate(records: list[dict]) -> list[dict]:
             "stage_ms_median": {k: statistics.median(v) for k, v in stage.items()},
             "dynamic_stages": dyn.get("stages") if dyn else None,
             "network_ms_median": _median((r.get("network") or {}).get("inference_ms_median") for r in ok),
+            "propagate_ms_median": _median((r.get("network") or {}).get("propagate_ms_median") for r in ok),
             "dynamic_ms_median": (dyn or {}).get("summary", {}).get("stage_ms_median", {}).get("dynamic") if dyn else None,
             "worker_ms_median": _worker_ms(ok),
             "dynamic_keypoints_median": (dyn or {}).get("summary", {}).get("dynamic_keypoints_median") if dyn else None,
@@ -195,6 +196,8 @@ def _labels_cell(r: dict) -> str:
         "label images" if r["labels"] else "none"
     if r.get("network_ms_median") is not None:
         labels += f", {r['network_ms_median']:.0f} ms/image on its own thread"
+    if r.get("propagate_ms_median") is not None:
+        labels += f"; moved onto each frame in {r['propagate_ms_median']:.1f} ms before the track call"
     return labels
 
 
@@ -379,7 +382,9 @@ def render(results: dict, out: pathlib.Path, plots: dict | None = None, stages_p
              "- Semantic stages read the synthetic sequences' label images (PASCAL VOC ids as a network would "
              "output, parked car included). Real sequences have none: there the segmentation network runs "
              "asynchronously on its own thread (masks of older frames propagated by optical flow, as on a live "
-             "camera), and its ms per image are given apart (labels column of the presets table); without a "
+             "camera), and its ms per image are given apart (labels column of the presets table), as are the "
+             "ms the flow takes per frame: it runs on the tracking thread, before the track call, and is not in "
+             "the track call's ms; without a "
              "model (--no-network) the semantic stage marks nothing there. `dynaorb bench --suite "
              "segmentation` measures the network's latency per back end and thread count.",
              f"- ORB-SLAM3 peer: {peer.get('status', 'n/a')}"
