@@ -238,3 +238,20 @@ def test_background_threads_run_nicer_than_tracking(data):
     del system
     with pytest.raises(ValueError, match="background_nice must be in \\[0, 19\\], got 20"):
         core().System(settings, "rgbd", background_nice=20)
+
+
+def test_non_contiguous_arrays_cross_as_copies(data):
+    """A slice or a Fortran-ordered array reaches the core as its own copy (numpy_mat.h's as_mat):
+    the same result as the C-ordered array, never the freed temporary pybind11 made for it."""
+    import cv2
+
+    frames = sorted((data / "euroc" / "MH_05_difficult_head" / "mav0" / "cam0" / "data").glob("*.png"))[:2]
+    a, b = (cv2.imread(str(f), cv2.IMREAD_GRAYSCALE) for f in frames)
+    labels = np.zeros_like(a)
+    labels[100:300, 200:350] = 15
+    prop = core().LabelPropagator(0.5)
+    expected = prop.warp(labels, a, b)
+    assert (expected == 15).sum() > 20000
+    for variant in (np.asfortranarray, lambda m: np.hstack([m, m])[:, : m.shape[1]]):
+        got = prop.warp(variant(labels), variant(a), variant(b))
+        assert np.array_equal(got, expected)
