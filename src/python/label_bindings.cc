@@ -29,7 +29,7 @@ void bind_labels(py::module_& m) {
             return to_numpy(out);
           },
           py::arg("labels"), py::arg("src_grey"), py::arg("dst_grey"),
-          "labels (uint8 / uint16 HxW) of src_grey -> labels of dst_grey (uint8 HxW, the same size).");
+          "labels (uint8 / uint16 HxW) of src_grey -> labels of dst_grey (the same type and size).");
 
   py::class_<LiveLabels>(
       m, "LiveLabels",
