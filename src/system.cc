@@ -8,6 +8,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "dynaorb/core/grey_image.h"
 #include "dynaorb/dynamic/inpainting.h"
 #include "dynaorb/dynamic/stereo_depth.h"
 #include "dynaorb/io/errors.h"
@@ -58,17 +59,6 @@ cv::Mat to_bgr(const cv::Mat& in, bool rgb_order) {
   return bgr;
 }
 
-// Grey image from an 8-bit grey / 3- or 4-channel image; false when the type is unusable.
-bool to_grey(const cv::Mat& in, bool rgb_order, cv::Mat& grey) {
-  if (in.depth() != CV_8U) return false;
-  grey.release();  // it may share an earlier caller's image: convert into a new one
-  switch (in.channels()) {
-    case 1: grey = in; return true;
-    case 3: cv::cvtColor(in, grey, rgb_order ? cv::COLOR_RGB2GRAY : cv::COLOR_BGR2GRAY); return true;
-    case 4: cv::cvtColor(in, grey, rgb_order ? cv::COLOR_RGBA2GRAY : cv::COLOR_BGRA2GRAY); return true;
-    default: return false;
-  }
-}
 
 }  // namespace
 

@@ -1,7 +1,6 @@
 #include "ros_conversions.h"
 
 #include <cv_bridge/cv_bridge.h>
-#include <opencv2/imgproc.hpp>
 #include <sensor_msgs/image_encodings.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
 
@@ -26,13 +25,6 @@ cv::Mat image_for_tracking(const sensor_msgs::ImageConstPtr& msg, bool rgb_order
     error = std::string("cannot read a '") + msg->encoding + "' image: " + ex.what();
     return {};
   }
-}
-
-cv::Mat grey_of(const cv::Mat& image, bool rgb_order) {
-  if (image.channels() == 1) return image;
-  cv::Mat grey;
-  cv::cvtColor(image, grey, rgb_order ? cv::COLOR_RGB2GRAY : cv::COLOR_BGR2GRAY);
-  return grey;
 }
 
 cv::Mat depth_in_metres(const sensor_msgs::ImageConstPtr& msg, double depth_map_factor, std::string& error) {

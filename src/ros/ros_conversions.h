@@ -18,9 +18,6 @@ namespace dynaorb::node {
 // Empty Mat and `error` set when cv_bridge cannot read it.
 cv::Mat image_for_tracking(const sensor_msgs::ImageConstPtr& msg, bool rgb_order, std::string& error);
 
-// image_for_tracking's image as 8-bit grey (for label propagation).
-cv::Mat grey_of(const cv::Mat& image, bool rgb_order);
-
 // Depth in metres (32FC1): 16UC1 / mono16 divided by depth_map_factor
 // (the YAML's DepthMapFactor: 1000 for millimetres, 5000 for TUM's PNGs),
 // 32FC1 taken as metres (REP-118). Empty Mat and `error` otherwise.

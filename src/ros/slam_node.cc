@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <sstream>
 
+#include "dynaorb/core/grey_image.h"
 #include "dynaorb/io/errors.h"
 #include "ros_conversions.h"
 
@@ -360,8 +361,10 @@ void SlamNode::process_live(const FrameInput& frame) {
   // with), if recent enough.
   dynamic::FrameLabels l;
   try {
-    l = live_labels_->labels_for(frame.header.stamp.toSec(), grey_of(frame.image, cfg_.settings.camera.rgb));
-  } catch (const std::exception& e) {  // a non-finite stamp: the core refuses the frame itself
+    cv::Mat grey;  // stays empty for an image the core cannot read: refused below, as by the System
+    to_grey(frame.image, cfg_.settings.camera.rgb, grey);
+    l = live_labels_->labels_for(frame.header.stamp.toSec(), grey);
+  } catch (const std::exception& e) {  // a non-finite stamp, an unusable image: the core refuses the frame itself
     ROS_WARN_THROTTLE(5.0, "dynaorb_node: no labels for frame %.6f: %s", frame.header.stamp.toSec(), e.what());
   }
   using Source = dynamic::FrameLabels::Source;
