@@ -62,16 +62,17 @@ void follow(cv::Mat& disp, const cv::Mat& flow, LabelScratch& scratch) {
   disp += scratch.step;
 }
 
+// The bounding box of the labelled (non-zero) pixels; empty for background only.
+cv::Rect labelled_box(const cv::Mat& labels) { return cv::boundingRect(labels != 0); }
+
 // The labels at p + disp(p), disp at flow resolution (bilinear between its
 // samples, as cv::resize's INTER_LINEAR places them), labels at full size.
 // Only the pixels that can land on a labelled one are sampled: those within
 // the largest displacement of the labelled pixels' bounding box (the rest
 // are background); on a frame with one person that is a fraction of the
 // image, where resampling the whole image cost 3 ms at 752x480.
-cv::Mat sample_labels(const cv::Mat& labels, const cv::Mat& disp_small, LabelScratch& scratch) {
+cv::Mat sample_labels(const cv::Mat& labels, const cv::Rect& box, const cv::Mat& disp_small, LabelScratch& scratch) {
   cv::Mat out = cv::Mat::zeros(labels.size(), labels.type());
-  cv::compare(labels, 0, scratch.set, cv::CMP_NE);
-  const cv::Rect box = cv::boundingRect(scratch.set);
   if (box.area() == 0) return out;
   const double sx = static_cast<double>(labels.cols) / disp_small.cols;
   const double sy = static_cast<double>(labels.rows) / disp_small.rows;
@@ -159,11 +160,12 @@ cv::Mat LabelPropagator::warp(const cv::Mat& labels, const cv::Mat& src_grey, co
   if (labels.size() != src_grey.size() || src_grey.size() != dst_grey.size())
     throw InputError("label propagation needs equal sizes: labels " + size_text(labels) + ", source " +
                      size_text(src_grey) + ", destination " + size_text(dst_grey));
-  if (cv::countNonZero(labels) == 0) return labels.clone();
+  const cv::Rect box = labelled_box(labels);
+  if (box.area() == 0) return labels.clone();
   const auto t0 = Clock::now();
   cv::Mat flow;
   dis_->calc(small_of(dst_grey, scale_), small_of(src_grey, scale_), flow);
-  cv::Mat out = sample_labels(labels, flow, scratch_);
+  cv::Mat out = sample_labels(labels, box, flow, scratch_);
   if (ms) *ms = ms_since(t0);
   return out;
 }
@@ -178,7 +180,8 @@ LiveLabels::LiveLabels(const LabelPropagationOptions& options) : o_(options) {
 void LiveLabels::add_labels(double stamp, const cv::Mat& labels) {
   if (!std::isfinite(stamp)) throw InputError("label propagation: a label image's stamp is not finite");
   if (!is_labels(labels)) throw InputError("label propagation: labels must be one 8- or 16-bit channel");
-  labels_[stamp] = labels.clone();  // the caller may reuse its buffer
+  const cv::Mat own = labels.clone();  // the caller may reuse its buffer
+  labels_[stamp] = {own, labelled_box(own)};
   while (static_cast<int>(labels_.size()) > o_.frames_kept) labels_.erase(labels_.begin());
 }
 
@@ -209,7 +212,7 @@ const cv::Mat& LiveLabels::flow_to_previous(int j) {
   return f.flow_to_previous;
 }
 
-cv::Mat LiveLabels::carry(const cv::Mat& labels, int from) {
+cv::Mat LiveLabels::carry(const LabelImage& labels, int from) {
   const int last = static_cast<int>(frames_.size()) - 1;
   const double source = frames_[from].stamp;
   if (have_disp_ && std::abs(disp_source_ - source) <= kSameStamp &&
@@ -225,7 +228,7 @@ cv::Mat LiveLabels::carry(const cv::Mat& labels, int from) {
   disp_source_ = source;
   disp_frame_ = frames_[last].stamp;
   have_disp_ = true;
-  return sample_labels(labels, disp_, scratch_);
+  return sample_labels(labels.labels, labels.box, disp_, scratch_);
 }
 
 FrameLabels LiveLabels::labels_for(double stamp, const cv::Mat& grey) {
@@ -246,31 +249,33 @@ FrameLabels LiveLabels::labels_for(double stamp, const cv::Mat& grey) {
   auto newest = after;
   const bool have_newest = newest != labels_.begin();
   if (have_newest) --newest;
-  if (have_newest && stamp - newest->first <= o_.max_age_s + kSameStamp && newest->second.size() == grey.size()) {
+  if (have_newest && stamp - newest->first <= o_.max_age_s + kSameStamp &&
+      newest->second.labels.size() == grey.size()) {
     const double age = stamp - newest->first;
     const int from = frame_index(newest->first);
     out.age_s = std::max(0.0, age);
     if (age <= kSameStamp) {
       out.source = FrameLabels::Source::kFresh;
-      out.labels = newest->second;
+      out.labels = newest->second.labels;
     } else if (!o_.propagate || from < 0) {
       // Not moved, or its image was not seen here (dropped before tracking): as it is.
       out.source = FrameLabels::Source::kAsIs;
-      out.labels = newest->second;
+      out.labels = newest->second.labels;
     } else {
       out.source = FrameLabels::Source::kPropagated;
-      if (cv::countNonZero(newest->second) == 0) {
-        out.labels = newest->second;  // only background: any flow keeps it so
+      if (newest->second.box.area() == 0) {
+        out.labels = newest->second.labels;  // only background: any flow keeps it so
       } else {
         const auto t0 = Clock::now();
         out.labels = carry(newest->second, from);
         out.propagate_ms = ms_since(t0);
       }
     }
-  } else if (after != labels_.end() && after->first - stamp <= o_.max_age_s && after->second.size() == grey.size()) {
+  } else if (after != labels_.end() && after->first - stamp <= o_.max_age_s &&
+             after->second.labels.size() == grey.size()) {
     // Only labels of a later image (this frame tracked late): as they are.
     out.source = FrameLabels::Source::kAsIs;
-    out.labels = after->second;
+    out.labels = after->second.labels;
     out.age_s = stamp - after->first;
   } else {
     out.source = labels_.empty() ? FrameLabels::Source::kNone : FrameLabels::Source::kStale;

@@ -51,7 +51,7 @@ struct LabelPropagationOptions {
 
 // Buffers the warps reuse (their allocations cost page faults every frame).
 struct LabelScratch {
-  cv::Mat set, map_x, map_y;         // full size, over the labels' reach
+  cv::Mat map_x, map_y;              // full size, over the labels' reach
   cv::Mat small_x, small_y, step;    // flow size, chaining
 };
 
@@ -103,7 +103,11 @@ class LiveLabels {
   LabelPropagationOptions o_;
   cv::Ptr<cv::DISOpticalFlow> dis_;
   LabelScratch scratch_;
-  std::map<double, cv::Mat> labels_;  // by the labelled image's stamp
+  struct LabelImage {
+    cv::Mat labels;
+    cv::Rect box;  // of its labelled pixels, found once (empty: background only)
+  };
+  std::map<double, LabelImage> labels_;  // by the labelled image's stamp
   std::deque<Frame> frames_;          // recent frames, oldest first
   long counts_[5] = {0, 0, 0, 0, 0};
   // The chained displacement from the last frame given propagated labels
@@ -116,7 +120,7 @@ class LiveLabels {
   int frame_index(double stamp) const;  // -1: not kept
   void prune(double stamp);
   // labels of frames_[from] moved to frames_.back() (from < size - 1).
-  cv::Mat carry(const cv::Mat& labels, int from);
+  cv::Mat carry(const LabelImage& labels, int from);
   const cv::Mat& flow_to_previous(int j);
 };
 
