@@ -3,6 +3,7 @@
 // object's true place; and LiveLabels' choice of labels per frame.
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <opencv2/imgproc.hpp>
 
 #include "dynaorb/dynamic/label_propagation.h"
@@ -111,6 +112,15 @@ TEST(LabelPropagator, RefusesBadInput) {
   LabelPropagationOptions o;
   o.max_age_s = -1;
   EXPECT_THROW(LiveLabels{o}, InputError);
+  // A live stream's bad input: non-finite stamps, a colour frame, labels of a float type.
+  LiveLabels live;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(live.add_labels(nan, Scene::labels(100)), InputError);
+  EXPECT_THROW(live.add_labels(0.0, cv::Mat::zeros(360, 640, CV_32FC1)), InputError);
+  EXPECT_THROW(live.labels_for(std::numeric_limits<double>::infinity(), g), InputError);
+  EXPECT_THROW(live.labels_for(0.0, colour), InputError);
+  // ... and the stream goes on: the next good frame gets an answer.
+  EXPECT_EQ(live.labels_for(0.1, g).source, FrameLabels::Source::kNone);
 }
 
 // A live camera at 10 Hz: the object walks 8 px and the camera pans 4 px a
