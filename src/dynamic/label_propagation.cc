@@ -66,11 +66,11 @@ void follow(cv::Mat& disp, const cv::Mat& flow, LabelScratch& scratch) {
 cv::Rect labelled_box(const cv::Mat& labels) { return cv::boundingRect(labels != 0); }
 
 // The labels at p + disp(p), disp at flow resolution (bilinear between its
-// samples, as cv::resize's INTER_LINEAR places them), labels at full size.
-// Only the pixels that can land on a labelled one are sampled: those within
-// the largest displacement of the labelled pixels' bounding box (the rest
-// are background); on a frame with one person that is a fraction of the
-// image, where resampling the whole image cost 3 ms at 752x480.
+// samples: cv::resize's INTER_LINEAR), labels at full size. Only the pixels
+// that can land on a labelled one are sampled: those within the largest
+// displacement of the labelled pixels' bounding box (the rest are
+// background); on a frame with one person that is a fraction of the image,
+// where resampling the whole image cost 3 ms at 752x480.
 cv::Mat sample_labels(const cv::Mat& labels, const cv::Rect& box, const cv::Mat& disp_small, LabelScratch& scratch) {
   cv::Mat out = cv::Mat::zeros(labels.size(), labels.type());
   if (box.area() == 0) return out;
@@ -81,54 +81,46 @@ cv::Mat sample_labels(const cv::Mat& labels, const cv::Rect& box, const cv::Mat&
   for (int y = 0; y < disp_small.rows; ++y) {
     const cv::Vec2f* d = disp_small.ptr<cv::Vec2f>(y);
     for (int x = 0; x < disp_small.cols; ++x) {
-      const float dx = std::abs(d[x][0]) * static_cast<float>(sx), dy = std::abs(d[x][1]) * static_cast<float>(sy);
+      const float dx = std::abs(d[x][0]), dy = std::abs(d[x][1]);
       if (dx < kOutside / 2 && dy < kOutside / 2) reach = std::max(reach, std::max(dx, dy));
     }
   }
+  reach *= static_cast<float>(std::max(sx, sy));
   const int r = static_cast<int>(std::ceil(reach)) + 2;
   const cv::Rect roi = cv::Rect(box.x - r, box.y - r, box.width + 2 * r, box.height + 2 * r) &
                        cv::Rect(0, 0, labels.cols, labels.rows);
   if (roi.area() == 0) return out;
-  // Full-size displacement over the ROI: cv::resize's INTER_LINEAR sample
-  // positions, (x + 0.5) / s - 0.5, clamped at the borders.
-  scratch.map_x.create(roi.size(), CV_32FC1);
-  scratch.map_y.create(roi.size(), CV_32FC1);
-  cv::Mat& map_x = scratch.map_x;
-  cv::Mat& map_y = scratch.map_y;
-  const int w = disp_small.cols, h = disp_small.rows;
-  std::vector<int> x0(roi.width), x1(roi.width);
-  std::vector<float> ax(roi.width);
-  for (int i = 0; i < roi.width; ++i) {
-    const double fx = std::clamp((roi.x + i + 0.5) / sx - 0.5, 0.0, static_cast<double>(w - 1));
-    x0[i] = static_cast<int>(fx);
-    x1[i] = std::min(x0[i] + 1, w - 1);
-    ax[i] = static_cast<float>(fx - x0[i]);
-  }
+  // The displacement at full size (OpenCV's vectorised resize: per pixel
+  // over the ROI, the same bilinear weights took longer than the whole
+  // image's resize), then where each ROI pixel's label comes from.
+  cv::resize(disp_small, scratch.full_disp, labels.size(), 0, 0, cv::INTER_LINEAR);
+  scratch.map.create(roi.size(), CV_32FC2);
+  const float fx = static_cast<float>(sx), fy = static_cast<float>(sy);
   for (int j = 0; j < roi.height; ++j) {
-    const double fy = std::clamp((roi.y + j + 0.5) / sy - 0.5, 0.0, static_cast<double>(h - 1));
-    const int y0 = static_cast<int>(fy), y1 = std::min(y0 + 1, h - 1);
-    const float ay = static_cast<float>(fy - y0);
-    const cv::Vec2f* d0 = disp_small.ptr<cv::Vec2f>(y0);
-    const cv::Vec2f* d1 = disp_small.ptr<cv::Vec2f>(y1);
-    float* mx = map_x.ptr<float>(j);
-    float* my = map_y.ptr<float>(j);
+    const float* d = scratch.full_disp.ptr<float>(roi.y + j) + 2 * roi.x;
+    float* m = scratch.map.ptr<float>(j);
+    const float y = static_cast<float>(roi.y + j);
     for (int i = 0; i < roi.width; ++i) {
-      const cv::Vec2f top = d0[x0[i]] * (1 - ax[i]) + d0[x1[i]] * ax[i];
-      const cv::Vec2f bottom = d1[x0[i]] * (1 - ax[i]) + d1[x1[i]] * ax[i];
-      const cv::Vec2f d = top * (1 - ay) + bottom * ay;
-      mx[i] = static_cast<float>(roi.x + i + d[0] * sx);
-      my[i] = static_cast<float>(roi.y + j + d[1] * sy);
+      m[2 * i] = static_cast<float>(roi.x + i) + d[2 * i] * fx;
+      m[2 * i + 1] = y + d[2 * i + 1] * fy;
     }
   }
   cv::Mat out_roi = out(roi);
-  cv::remap(labels, out_roi, map_x, map_y, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
+  cv::remap(labels, out_roi, scratch.map, cv::noArray(), cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
   return out;
+}
+
+void check_ids(const std::vector<int>& ids) {
+  for (int id : ids)
+    if (id < 0 || id > 65535)
+      throw InputError("label propagation: class id " + std::to_string(id) + " is not a label id (0-65535)");
 }
 
 }  // namespace
 
 void LabelPropagationOptions::validate() const {
   check_scale(flow_scale);
+  check_ids(classes);
   if (!(max_age_s >= 0) || std::isinf(max_age_s))
     throw InputError("label propagation: max_age_s must be a finite number of seconds >= 0");
   if (frames_kept < 1) throw InputError("label propagation: frames_kept must be at least 1");
@@ -143,6 +135,29 @@ const char* to_string(FrameLabels::Source source) {
     case FrameLabels::Source::kNone: break;
   }
   return "none";
+}
+
+cv::Mat keep_classes(const cv::Mat& labels, const std::vector<int>& ids) {
+  if (!is_labels(labels)) throw InputError("label propagation: labels must be one 8- or 16-bit channel");
+  if (ids.empty()) return labels;
+  check_ids(ids);
+  if (labels.depth() == CV_8U) {
+    cv::Mat table(1, 256, CV_8UC1, cv::Scalar(0));
+    for (int id : ids)
+      if (id < 256) table.at<unsigned char>(id) = static_cast<unsigned char>(id);
+    cv::Mat out;
+    cv::LUT(labels, table, out);
+    return out;
+  }
+  std::vector<unsigned char> keep(65536, 0);
+  for (int id : ids) keep[static_cast<size_t>(id)] = 1;
+  cv::Mat out(labels.size(), labels.type());
+  for (int y = 0; y < labels.rows; ++y) {
+    const unsigned short* in = labels.ptr<unsigned short>(y);
+    unsigned short* o = out.ptr<unsigned short>(y);
+    for (int x = 0; x < labels.cols; ++x) o[x] = keep[in[x]] ? in[x] : 0;
+  }
+  return out;
 }
 
 // ---------------------------------------------------------------- one pair
@@ -180,9 +195,19 @@ LiveLabels::LiveLabels(const LabelPropagationOptions& options) : o_(options) {
 void LiveLabels::add_labels(double stamp, const cv::Mat& labels) {
   if (!std::isfinite(stamp)) throw InputError("label propagation: a label image's stamp is not finite");
   if (!is_labels(labels)) throw InputError("label propagation: labels must be one 8- or 16-bit channel");
-  const cv::Mat own = labels.clone();  // the caller may reuse its buffer
+  // A copy either way: the caller may reuse its buffer.
+  const cv::Mat own = o_.classes.empty() ? labels.clone() : keep_classes(labels, o_.classes);
   labels_[stamp] = {own, labelled_box(own)};
   while (static_cast<int>(labels_.size()) > o_.frames_kept) labels_.erase(labels_.begin());
+}
+
+void LiveLabels::set_classes(const std::vector<int>& ids) {
+  check_ids(ids);
+  o_.classes = ids;
+  for (auto& [stamp, image] : labels_) {
+    image.labels = keep_classes(image.labels, ids);
+    image.box = labelled_box(image.labels);
+  }
 }
 
 void LiveLabels::clear() {

@@ -3,6 +3,9 @@
 #include "dynaorb/dynamic/label_propagation.h"
 #include "numpy_mat.h"
 
+#include <pybind11/stl.h>
+#include <vector>
+
 namespace dynaorb {
 
 void bind_labels(py::module_& m) {
@@ -36,16 +39,20 @@ void bind_labels(py::module_& m) {
       "Per frame, the newest label image not later than the frame, moved onto it along the\n"
       "frames since (chained flows between consecutive frames). Stamps are any increasing\n"
       "time key (seconds, or frame indices with max_age in frames).")
-      .def(py::init([](bool propagate, double flow_scale, double max_age, int frames_kept) {
+      .def(py::init([](bool propagate, double flow_scale, double max_age, int frames_kept, std::vector<int> classes) {
              LabelPropagationOptions o;
              o.propagate = propagate;
              o.flow_scale = flow_scale;
              o.max_age_s = max_age;
              o.frames_kept = frames_kept;
+             o.classes = std::move(classes);
              return LiveLabels(o);
            }),
            py::arg("propagate") = true, py::arg("flow_scale") = 0.5, py::arg("max_age") = 0.5,
-           py::arg("frames_kept") = 64)
+           py::arg("frames_kept") = 64, py::arg("classes") = std::vector<int>(),
+           "classes: the label ids carried (others become background); empty: all.")
+      .def("set_classes", &LiveLabels::set_classes, py::arg("ids"),
+           "Other ids to carry, from now on (the label images kept are reduced again).")
       .def(
           "add_labels",
           [](LiveLabels& l, double stamp, const py::object& labels) { l.add_labels(stamp, as_mat(labels, "labels")); },

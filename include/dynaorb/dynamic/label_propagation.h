@@ -27,6 +27,7 @@
 // needs no flow.
 #include <deque>
 #include <map>
+#include <vector>
 #include <opencv2/core.hpp>
 #include <opencv2/video/tracking.hpp>
 
@@ -44,6 +45,12 @@ struct LabelPropagationOptions {
   double max_age_s = 0.5;
   // Frames kept for labels still to come, at most.
   int frames_kept = 64;
+  // Non-empty: the label ids carried (the filter's movable classes); the
+  // others become background when a label image arrives. Only those ids are
+  // read downstream, and a scene without any of them then needs no flow: the
+  // PASCAL network labels most of EuRoC V1's room "sofa" (18), which cost a
+  // flow and a warp of the whole image on every frame.
+  std::vector<int> classes;
 
   // Refuses values no run can use (InputError naming the option).
   void validate() const;
@@ -51,7 +58,8 @@ struct LabelPropagationOptions {
 
 // Buffers the warps reuse (their allocations cost page faults every frame).
 struct LabelScratch {
-  cv::Mat map_x, map_y;              // full size, over the labels' reach
+  cv::Mat full_disp;                 // the displacement at full size (CV_32FC2)
+  cv::Mat map;                       // CV_32FC2, over the labels' reach
   cv::Mat small_x, small_y, step;    // flow size, chaining
 };
 
@@ -80,11 +88,20 @@ struct FrameLabels {
 };
 const char* to_string(FrameLabels::Source source);
 
+// labels with every id not in `ids` set to background (0); `ids` empty: labels
+// as they are (not copied). Labels one 8- or 16-bit channel (InputError otherwise).
+cv::Mat keep_classes(const cv::Mat& labels, const std::vector<int>& ids);
+
 class LiveLabels {
  public:
   explicit LiveLabels(const LabelPropagationOptions& options = {});
-  // A label image for the image stamped `stamp` (the network's result).
+  // A label image for the image stamped `stamp` (the network's result),
+  // reduced to options.classes.
   void add_labels(double stamp, const cv::Mat& labels);
+  // Other classes to carry (a segmentation server announcing its label set
+  // after start-up): the label images kept are reduced again, those to come
+  // too. Ids not carried before stay lost in the images already reduced.
+  void set_classes(const std::vector<int>& ids);
   // The labels for a frame (grey: its 8-bit grey image), frames in stamp
   // order (an older stamp than the last frame's clears the frames kept).
   FrameLabels labels_for(double stamp, const cv::Mat& grey);

@@ -212,5 +212,58 @@ TEST(LiveLabels, WithoutPropagationLabelsStayAsTheyAre) {
   EXPECT_EQ(l.propagate_ms, 0);
 }
 
+TEST(KeepClasses, OtherIdsBecomeBackground) {
+  cv::Mat l8 = (cv::Mat_<unsigned char>(1, 5) << 0, 15, 18, 7, 15);
+  cv::Mat kept = keep_classes(l8, {15, 7, 300});
+  EXPECT_EQ(cv::countNonZero(kept != (cv::Mat_<unsigned char>(1, 5) << 0, 15, 0, 7, 15)), 0);
+  cv::Mat l16 = (cv::Mat_<unsigned short>(1, 4) << 0, 1000, 18, 24);
+  kept = keep_classes(l16, {1000, 24});
+  ASSERT_EQ(kept.type(), CV_16UC1);
+  EXPECT_EQ(cv::countNonZero(kept != (cv::Mat_<unsigned short>(1, 4) << 0, 1000, 0, 24)), 0);
+  EXPECT_EQ(keep_classes(l8, {}).data, l8.data);  // no ids: as they are
+  EXPECT_THROW(keep_classes(l8, {-1}), InputError);
+  EXPECT_THROW(keep_classes(l8, {70000}), InputError);
+  EXPECT_THROW(keep_classes(cv::Mat(2, 2, CV_32FC1), {15}), InputError);
+  LabelPropagationOptions o;
+  o.classes = {15, -3};
+  EXPECT_THROW(LiveLabels{o}, InputError);
+}
+
+// A label image whose only labelled class is not carried (EuRoC V1's "sofa"
+// under the PASCAL network) is background: no flow; a carried class is moved
+// and nothing else comes with it.
+TEST(LiveLabels, OnlyTheCarriedClassesAreMoved) {
+  const Scene scene;
+  constexpr int kSofa = 18;
+  LabelPropagationOptions o;
+  o.classes = {kPerson};
+  LiveLabels live(o);
+  cv::Mat sofa = Scene::labels(100);
+  sofa.setTo(kSofa, sofa == 0);  // the person on a sofa filling the rest of the image
+  live.labels_for(0.0, scene.grey(0, 100));
+  live.add_labels(0.0, sofa);
+  FrameLabels l = live.labels_for(0.1, scene.grey(4, 108));
+  ASSERT_EQ(l.source, FrameLabels::Source::kPropagated);
+  EXPECT_GT(l.propagate_ms, 0);
+  EXPECT_EQ(cv::countNonZero(l.labels == kSofa), 0);
+  EXPECT_GT(iou(l.labels, Scene::labels(108)), iou(Scene::labels(100), Scene::labels(108)));
+  // Only sofa: background, no flow.
+  cv::Mat only_sofa(360, 640, CV_8UC1, cv::Scalar(kSofa));
+  live.add_labels(0.1, only_sofa);
+  l = live.labels_for(0.2, scene.grey(8, 116));
+  ASSERT_EQ(l.source, FrameLabels::Source::kPropagated);
+  EXPECT_EQ(l.propagate_ms, 0);
+  EXPECT_EQ(cv::countNonZero(l.labels), 0);
+  // A label set announced later: the images kept are reduced to it.
+  LiveLabels all;  // carries every class until told otherwise
+  all.labels_for(0.0, scene.grey(0, 100));
+  all.add_labels(0.0, sofa);
+  all.set_classes({kSofa});
+  l = all.labels_for(0.1, scene.grey(4, 108));
+  EXPECT_EQ(cv::countNonZero(l.labels == kPerson), 0);
+  EXPECT_GT(cv::countNonZero(l.labels == kSofa), 0);
+  EXPECT_THROW(all.set_classes({-1}), InputError);
+}
+
 }  // namespace
 }  // namespace dynaorb::dynamic
