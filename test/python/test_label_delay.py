@@ -47,5 +47,10 @@ def test_propagation_gives_back_what_a_lagging_network_costs(synth_scenes, tmp_p
             kind = "propagated" if propagate else "as_is"
             assert s["frames"] == {"fresh": 1, kind: 59} and s["age_median"] == 7 and s["age_max"] == 9
             assert (s["propagate_ms_median"] is not None) == propagate
+            # The tracking thread's time for each frame's labels, and the track call with it.
+            assert len(stats["labels_ms"]) == len(stats["track_call_ms"]) == 60
+            assert stats["track_call_plus_labels_ms_median"] >= stats["track_call_ms_median"]
+        else:
+            assert stats["labels_ms"] is None and stats["track_call_plus_labels_ms_median"] is None
     assert ate["moved"] <= 1.3 * ate["exact"], ate     # measured 3.1 against 2.8 mm
     assert ate["as_is"] >= 3 * ate["exact"], ate       # measured 207 mm: the problem the flow solves

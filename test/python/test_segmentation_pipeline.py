@@ -187,6 +187,26 @@ def test_background_only_labels_are_not_propagated(moving):
     assert summary["propagate_ms_median"] is None   # the flow never ran
 
 
+def test_only_the_movable_classes_are_carried(moving):
+    """Labels of classes the filter does not read (a "sofa" filling the room, as the PASCAL network sees
+    EuRoC V1) become background: no flow; the movable ones are carried alone."""
+    sofa = 18
+    seq = [(img, np.where(lab > 0, lab, sofa).astype(lab.dtype)) for img, lab in frames(moving)]
+    movers = {int(v) for _, lab in frames(moving) for v in np.unique(lab) if v}
+    only_sofa = [(img, np.full_like(lab, sofa)) for img, lab in seq]
+    for labelled, flows in ((only_sofa, False), (seq, True)):
+        masks = SemanticMasks(Oracle(labelled, delay_s=0.1), SemanticOptions(mode="async", classes=tuple(movers)))
+        try:
+            out = [masks.labels_for(i, img) for i, (img, _) in enumerate(labelled)]
+        finally:
+            masks.close()
+        assert any(o.source == "propagated" for o in out)
+        assert all(o.labels is None or not (o.labels == sofa).any() for o in out)
+        assert (masks.summary()["propagate_ms_median"] is not None) == flows
+    with pytest.raises(ValueError, match="class ids"):
+        SemanticMasks(Oracle(seq), SemanticOptions(mode="async", classes=(-1,)))
+
+
 class Blocked:
     """A 'network' that never answers until released."""
 

@@ -24,7 +24,8 @@ from dynaorb.segmentation.propagation import to_grey
 
 
 class DelayedLabels:
-    def __init__(self, delay: int, propagate: bool = True, max_age: int = 30, flow_scale: float = 0.5):
+    def __init__(self, delay: int, propagate: bool = True, max_age: int = 30, flow_scale: float = 0.5,
+                 classes=()):
         if isinstance(delay, bool) or not isinstance(delay, int) or delay < 1:
             raise ValueError(f"labels delay {delay!r} is not a whole number of frames >= 1")
         if delay > max_age:
@@ -35,7 +36,7 @@ class DelayedLabels:
         self.delay = delay
         self.propagate = propagate
         self._live = core().LiveLabels(propagate=propagate, flow_scale=flow_scale, max_age=float(max_age),
-                                      frames_kept=max(64, max_age + 2))
+                                      frames_kept=max(64, max_age + 2), classes=[int(c) for c in classes])
         self._pending: dict[int, np.ndarray | None] = {}   # frames' labels the emulated network is "working on"
         self._delivered = -1
         self.sources = collections.Counter()

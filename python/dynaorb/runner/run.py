@@ -227,6 +227,7 @@ def _semantic(opts: RunOptions):
     return segmenter, SemanticMasks(segmenter, SemanticOptions(mode=opts.segment_mode,
                                                                 max_age_frames=opts.max_mask_age,
                                                                 propagate=opts.propagate_labels,
+                                                                classes=tuple(int(i) for i in segmenter.card.movable),
                                                                 nice=opts.segment_nice))
 
 
@@ -404,7 +405,8 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
     labels_folder = LabelFolder(opts.labels) if opts.labels else None
     if opts.labels_delay and not labels_folder:
         raise ValueError("--labels-delay emulates a network on a label folder: give --labels")
-    delayed = (DelayedLabels(opts.labels_delay, opts.propagate_labels, opts.max_mask_age)
+    delayed = (DelayedLabels(opts.labels_delay, opts.propagate_labels, opts.max_mask_age,
+                             classes=(labels_folder.movable or ()) if labels_folder else ())
                if opts.labels_delay else None)
     if dynamic_on:
         # Label ids only mean something in the network's own label set.
@@ -439,6 +441,8 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
     states = collections.Counter()
     methods = collections.Counter()
     track_call_ms = []  # wall time around each track call (what a caller of the System waits)
+    live_labels = delayed is not None or semantic is not None
+    labels_ms = []  # with a network (or its emulation): the time taken for each frame's labels
     ok_frames = []  # frame indices tracked (state OK)
     frame_records = []  # one per frame read: what tracking made of it
     mask_ages = []
@@ -446,6 +450,7 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
     for i, frame in readable_frames(provider, skipped, opts.progress, f"{opts.kind} {pathlib.Path(opts.path).name}"):
         mask = masks.for_image(frame.image_path, frame.image.shape[:2]) if masks else None
         labels = labels_folder.for_image(frame.image_path, frame.image.shape[:2]) if labels_folder else None
+        t_labels = time.perf_counter()
         if delayed is not None:
             labels = delayed.labels_for(i, labels, frame.image)
         if semantic is not None:
@@ -462,6 +467,11 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
                 labels = frame.labels
             else:
                 mask = _label_mask(frame.labels, movable)
+        if live_labels:
+            # The tracking thread's own time for this frame's labels (the
+            # network's result taken, reduced to its movable classes, moved onto
+            # the frame): spent before the track call, on the same thread.
+            labels_ms.append(1000.0 * (time.perf_counter() - t_labels))
         if pacer is not None:
             pacer.wait(frame.stamp)
         t0 = time.perf_counter()
@@ -479,6 +489,7 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
             "map_dropped": result.map_dropped, "keypoints": result.keypoints,
             "tracked_points": result.tracked_points, "new_keyframe": result.new_keyframe,
             "track_call_ms": track_call_ms[-1],
+            "labels_ms": labels_ms[-1] if live_labels else None,
             # Part of the tracking stage spent waiting for the map lock (local
             # mapping, loop closing or global BA changing the map meanwhile).
             "map_wait_ms": result.stage_ms.get("tracking.map_wait"),
@@ -563,6 +574,13 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
         # benchmark can take the same way for another SLAM system.
         "track_call_ms_median": _median(track_call_ms),
         "track_call_ms": track_call_ms,
+        # With a network behind the camera (--segment, --labels-delay): the
+        # tracking thread's time per frame for the labels, before the track
+        # call, and the median of both together (what the thread spends on a frame).
+        "labels_ms": labels_ms if live_labels else None,
+        "labels_ms_median": _median(labels_ms),
+        "track_call_plus_labels_ms_median": (_median([a + b for a, b in zip(track_call_ms, labels_ms)])
+                                             if live_labels else None),
         "map_wait_ms": _spread([f["map_wait_ms"] for f in frame_records if f["map_wait_ms"] is not None]),
         # Per frame read: index, stamp, state, method, rejection, map index (one more
         # after each map given up), keypoints, tracked points, keyframe, track call ms,

@@ -35,6 +35,10 @@ class SemanticOptions:
     max_age_frames: int = 30     # older labels are dropped (about 1 s at 30 Hz)
     propagate: bool = True       # move old labels by optical flow (else use them as they are)
     flow_scale: float = 0.5      # resolution of the flow, relative to the image
+    # async: the label ids carried from frame to frame (the model's movable
+    # classes: the only ones the filter reads); the others become background,
+    # and labels without any of them need no flow. Empty: all ids.
+    classes: tuple[int, ...] = ()
     # async: the network thread's nice above the caller's (0-19), so tracking
     # gets the cores first on a busy machine (see async_segmenter).
     nice: int = DEFAULT_NICE
@@ -49,6 +53,10 @@ class SemanticOptions:
         if self.max_age_frames < 0:
             raise ValueError(f"max_age_frames {self.max_age_frames} is negative")
         check_nice(self.nice, "segmentation nice")
+        bad = [c for c in self.classes if isinstance(c, bool) or not isinstance(c, (int, np.integer))
+               or not 0 <= c <= 65535]
+        if bad:
+            raise ValueError(f"class ids {bad} are not label ids (0-65535)")
         if not (self.first_wait_s >= 0) or math.isinf(self.first_wait_s):
             raise ValueError(f"first_wait_s {self.first_wait_s} is not a finite number of seconds >= 0")
         return self
@@ -81,7 +89,8 @@ class SemanticMasks:
 
             self._live = core().LiveLabels(propagate=self.options.propagate, flow_scale=self.options.flow_scale,
                                           max_age=float(self.options.max_age_frames),
-                                          frames_kept=max(64, self.options.max_age_frames + 2))
+                                          frames_kept=max(64, self.options.max_age_frames + 2),
+                                          classes=[int(c) for c in self.options.classes])
         self._stale_logged = False
         self.first_wait_ms: float | None = None   # how long the first frame waited for its labels
         self.first_wait_timed_out = False
