@@ -306,6 +306,23 @@ def test_report_renders_from_results(tmp_path):
     assert "| 3.00 (over 10 % vs 100 % of the frames: not comparable) |" in text
 
 
+def test_pair_table_counts_the_labels_time_of_the_tracking_thread(tmp_path):
+    # `full` with a network: 40 / 50 ms track calls, the labels 5 / 7 ms before them; the medians of the
+    # per-frame sums 46 / 58 (not the sum of the medians): the pair compares their median, 52 ms, with the
+    # peer's 60 (0.87), not the track calls' 45 (0.75).
+    full = [{**_record("s:stereo:full", "dynaorb", "full", 0.02, ms, run), "labels_ms_median": labels,
+             "track_call_plus_labels_ms_median": ms + labels + 1}
+            for run, (ms, labels) in enumerate(((40.0, 5.0), (50.0, 7.0)))]
+    records = full + [_record("s:stereo:off", "dynaorb", "off", 0.02, 40.0),
+                      _record("s:stereo:orbslam3", "orbslam3", "off", 0.01, 60.0)]
+    rows = report.aggregate(records)
+    p = report.pairs(rows, "full")[0]
+    assert p["ms_ratio"] == pytest.approx(52.0 / 60.0)
+    assert "| 52.0 (45.0 + labels 6.0) | 60.0 | 0.87 |" in "\n".join(report.pair_table([p]))
+    # Without a network (no labels' time) the track call alone, as before.
+    assert report.pairs(rows, "off")[0]["ms_ratio"] == pytest.approx(40.0 / 60.0)
+
+
 def _tum(path: pathlib.Path, stamps, xyz) -> str:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("".join(f"{t:.6f} {x:.6f} {y:.6f} {z:.6f} 0 0 0 1\n" for t, (x, y, z) in zip(stamps, xyz)))

@@ -21,8 +21,9 @@ def summary(results: dict, source: str) -> str:
              f"from `{source}` ({results.get('started')}, {m.get('cpus')} CPUs, {m.get('cpu', 'unknown CPU')}; "
              f"{report.build_text(results.get('build'))}); "
              f"the full report (RPE, per-stage times, plots) is that folder's report.md. dynaorb: "
-             f"{results.get('mapping')}; ms/frame is the wall time around the track call for both systems "
-             "(medians over the runs).", ""]
+             f"{results.get('mapping')}; ms/frame is the wall time around the track call for both systems, and "
+             "for dynaorb with a network behind the camera also its tracking thread's time for each frame's "
+             "labels, taken before the track call (medians over the runs).", ""]
     peer = results.get("peer") or {}
     bench_dir = pathlib.Path(source)
     ps = report.pairs(rows, "off", results["records"], bench_dir)
@@ -33,7 +34,7 @@ def summary(results: dict, source: str) -> str:
         if full:
             lines += ["dynaorb's `full` dynamic preset against ORB-SLAM3 in its plain mode (issue 8's speed "
                       "target: ms ours/theirs <= 1 with ATE no worse; the network, where one runs, is on its "
-                      "own thread and not in these ms):", "", *report.pair_table(full), ""]
+                      "own thread and not in these ms, but the tracking thread's time for each frame's labels is):", "", *report.pair_table(full), ""]
     else:
         lines += [f"ORB-SLAM3: {peer.get('status', 'not run')}.", ""]
     lines += ["dynaorb, every case (ATE RMSE median, min-max over the runs):", ""]

@@ -165,6 +165,10 @@ def _metrics(stats: dict) -> dict:
         "frame_ms_median": (stats.get("stage_ms_median") or {}).get("frame_total"),
         "track_call_ms_median": stats.get("track_call_ms_median"),
         "track_call_ms": stats.get("track_call_ms"),
+        # With a network behind the camera: the tracking thread's time per frame
+        # for the labels (before the track call), and both together.
+        "labels_ms_median": stats.get("labels_ms_median"),
+        "track_call_plus_labels_ms_median": stats.get("track_call_plus_labels_ms_median"),
         "fps": stats.get("fps"),
         "stage_ms_median": stats.get("stage_ms_median"),
     }
