@@ -17,6 +17,9 @@
 // with the true mask 3 / 4 / 5 frames after the labelled image, the stale
 // labels 0.58 / 0.48 / 0.39, one flow across the gap 0.70 / 0.69 / 0.30
 // (0.08 at 6 frames, 0 at 8). Full-resolution flow: 0.76 / 0.71 / 0.64.
+// The flows are computed over the whole image (DIS's pyramid follows large
+// motion), the chain only over the pixels that land, frame by frame, near
+// the labelled box: the others can carry no label.
 //
 // LabelPropagator::warp: one pair of images (the chain of one step).
 // LiveLabels: the per-frame choice for a live camera (the ROS node), frames
@@ -61,6 +64,7 @@ struct LabelScratch {
   cv::Mat full_disp;                 // the displacement at full size (CV_32FC2)
   cv::Mat map;                       // CV_32FC2, over the labels' reach
   cv::Mat small_x, small_y, step;    // flow size, chaining
+  cv::Mat grid, landed, landing;     // flow size: pixel grid (CV_32FC2), where pixels land, which land in a box
 };
 
 class LabelPropagator {
@@ -128,11 +132,14 @@ class LiveLabels {
   std::deque<Frame> frames_;          // recent frames, oldest first
   long counts_[5] = {0, 0, 0, 0, 0};
   // The chained displacement from the last frame given propagated labels
-  // back to their labelled frame (small, CV_32FC2): the next frame with the
-  // same labels extends it by its own flow instead of chaining them all again.
+  // back to their labelled frame (small, CV_32FC2, over disp_at_): the next
+  // frame with the same labels extends it by its own flow instead of
+  // chaining them all again.
   cv::Mat disp_;
   double disp_source_ = 0, disp_frame_ = 0;
   bool have_disp_ = false;
+
+  cv::Rect disp_at_;  // the rectangle of the small image disp_ covers: the pixels that may reach a label
 
   int frame_index(double stamp) const;  // -1: not kept
   void prune(double stamp);
