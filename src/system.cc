@@ -688,6 +688,14 @@ bool System::localization_mode() const { return impl_->options.localization_only
 
 bool System::dynamic_filter_enabled() const { return impl_->dynamic_on(); }
 
+std::vector<int> System::movable_classes() const {
+  return impl_->filter ? impl_->filter->movable_classes() : std::vector<int>();
+}
+
+void System::set_movable_classes(const std::vector<int>& ids) {
+  if (impl_->filter) impl_->filter->set_movable_classes(ids);
+}
+
 cv::Mat System::last_dynamic_mask() const {
   Impl& s = *impl_;
   if (!s.filter || !s.filter->last_frame()) return cv::Mat();

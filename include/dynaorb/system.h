@@ -212,6 +212,11 @@ class System {
   // before a frame was processed. Not to be called concurrently with track_*.
   DenseFrame dense_frame(bool inpaint = false) const;
   bool dynamic_filter_enabled() const;
+  // The dynamic filter's movable label ids (its semantic stage's; empty
+  // without one), and their replacement by a label source's own set (a
+  // segmentation server announcing it after start-up; not during a track_* call).
+  std::vector<int> movable_classes() const;
+  void set_movable_classes(const std::vector<int>& ids);
 
   // Localisation only (ORB-SLAM2): tracking in the map, no new keyframes or points.
   void set_localization_mode(bool on);

@@ -293,6 +293,18 @@ DynamicFilter::DynamicFilter(const DynamicFilterOptions& options, Sensor sensor,
   }
 }
 
+std::vector<int> DynamicFilter::movable_classes() const {
+  for (const auto& stage : stages_)
+    if (const auto* sem = dynamic_cast<const SemanticStage*>(stage.get())) return sem->options().ids;
+  return {};
+}
+
+void DynamicFilter::set_movable_classes(const std::vector<int>& ids) {
+  o_.movable_classes = ids;
+  for (const auto& stage : stages_)
+    if (auto* sem = dynamic_cast<SemanticStage*>(stage.get()); sem && !ids.empty()) sem->set_movable_classes(ids);
+}
+
 std::vector<std::string> DynamicFilter::stage_names() const {
   std::vector<std::string> names;
   for (const auto& s : stages_) names.push_back(s->name());

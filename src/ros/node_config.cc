@@ -184,6 +184,8 @@ NodeConfig read_config(const ros::NodeHandle& pnh) {
   n.movable_ids_given = read_param(pnh, "movable_ids", n.movable_ids);
   if (!n.movable_ids_given) n.movable_ids = kPascalVocMovable;
   n.movable_ids_from = param_or<std::string>(pnh, "movable_ids_from", n.movable_ids_from);
+  // Ids only mean something in the labels' own set: given, they are the filter's too.
+  if (n.movable_ids_given) cfg.system.dynamic.movable_classes = n.movable_ids;
 
   // Dense cloud.
   n.publish_cloud = param_or(pnh, "publish_cloud", n.publish_cloud);

@@ -85,6 +85,7 @@ SlamNode::SlamNode(ros::NodeHandle nh, ros::NodeHandle pnh)
     lo.flow_scale = n.label_flow_scale;
     lo.max_age_s = n.max_label_age;
     live_labels_ = std::make_unique<dynamic::LiveLabels>(lo);
+    carry_movable_classes();
   }
 
   pub_odom_ = nh_.advertise<nav_msgs::Odometry>("odom", 50);
@@ -217,7 +218,14 @@ void SlamNode::on_labels(const sensor_msgs::ImageConstPtr& msg) {
   if (counters_.labels_in++ == 0 && !cfg_.node.movable_ids_given && !cfg_.node.movable_ids_from.empty()) {
     std::vector<int> ids;
     if (nh_.getParam(cfg_.node.movable_ids_from, ids) && !ids.empty()) {
-      cfg_.node.movable_ids = ids;
+      {
+        std::lock_guard<std::mutex> lk(system_mutex_);  // ~stats reads them
+        cfg_.node.movable_ids = ids;
+        // The filter's too: the preset's set is another label set's ids.
+        cfg_.system.dynamic.movable_classes = ids;
+        if (system_) system_->set_movable_classes(ids);
+      }
+      carry_movable_classes();
       ROS_INFO("dynaorb_node: masking the %zu movable classes of %s", ids.size(), cfg_.node.movable_ids_from.c_str());
     }
   }
@@ -422,7 +430,19 @@ bool SlamNode::ensure_system() {
              settings.camera.bf ? (", bf " + std::to_string(*settings.camera.bf)).c_str() : "");
   }
   system_ = std::make_unique<System>(settings, cfg_.node.sensor, cfg_.system);
+  carry_movable_classes();
   return true;
+}
+
+void SlamNode::carry_movable_classes() {
+  // Only the classes that are read downstream are moved from frame to frame
+  // (LabelPropagationOptions::classes): the filter's, or those the node masks
+  // itself. Before the System with a filter exists: every class.
+  if (!live_labels_) return;
+  if (cfg_.system.dynamic.enabled(cfg_.node.sensor))
+    live_labels_->set_classes(system_ ? system_->movable_classes() : std::vector<int>());
+  else
+    live_labels_->set_classes(cfg_.node.movable_ids);
 }
 
 // ---------------------------------------------------------------- hooks
@@ -833,6 +853,12 @@ std::string SlamNode::stats_json() const {
         << ", \"unchecked_kept\": " << s.unchecked_kept
         << ", \"keyframes\": " << m.keyframes << ", \"map_points\": " << m.points;
   }
+  // The movable label ids in use: the filter's with a preset, else those masked.
+  const std::vector<int> ids = system_ && system_->dynamic_filter_enabled() ? system_->movable_classes()
+                                                                           : cfg_.node.movable_ids;
+  out << ", \"movable_classes\": [";
+  for (size_t i = 0; i < ids.size(); ++i) out << (i ? ", " : "") << ids[i];
+  out << "]";
   out << "}";
   return out.str();
 }

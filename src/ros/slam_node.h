@@ -103,6 +103,8 @@ class SlamNode {
   void end_first_labels_wait(bool timed_out);
   void skip_before_labels(const FrameInput& frame);
   void process(const FrameInput& frame, const cv::Mat& labels, double label_age);
+  // The live labels carry the movable classes in use (the filter's, or ~movable_ids).
+  void carry_movable_classes();
   bool ensure_system();
 
   // ---- hooks: where the dynamic-object front end plugs in (see the report / README).

@@ -333,6 +333,8 @@ class SlamNodeTest(unittest.TestCase):
             # (~propagate_labels), never labels from beyond ~max_label_age.
             self.assertGreater(self.stats["labels_propagated"], 0)
             self.assertGreater(self.stats["label_propagation_ms_total"], 0)
+            # The classes in use are those the server announced for its model.
+            self.assertEqual(self.stats["movable_classes"], rospy.get_param("/segmentation_server/movable_ids"))
             ages = [s.label_age for s in self.status if s.mask_used]
             self.assertTrue(all(-0.5 <= a <= 0.5 for a in ages), ages)
         elif self.labels_mode == "bag":

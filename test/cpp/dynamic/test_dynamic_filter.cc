@@ -6,6 +6,7 @@
 
 #include "dynaorb/dynamic/dm_stage.h"
 #include "dynaorb/dynamic/dynamic_filter.h"
+#include "dynaorb/dynamic/semantic_stage.h"
 #include "dynaorb/features/orb_extractor.h"
 #include "dynaorb/io/errors.h"
 #include "dynaorb/system.h"
@@ -469,6 +470,34 @@ TEST(DynamicFilter, AllDynamicFrameIsKeptAndFlagged) {
     EXPECT_EQ(cv::countNonZero(f.dynamic), 320 * 240);
     filter.frame_tracked(std::nullopt);
   }
+}
+
+// A label set announced after start-up (a segmentation server's ~movable_ids)
+// replaces the preset's: its ids are the ones marked from then on.
+TEST(DynamicFilter, MovableClassesReplacedAfterStartUp) {
+  const DynamicFilterOptions o =
+      DynamicFilterOptions::parse("Dynamic.stages: [semantic]\nDynamic.semantic: {policy: drop, margin: 0}\n", "s.yaml");
+  DynamicFilter filter(o, Sensor::kRGBD, calibration(Sensor::kRGBD));
+  EXPECT_EQ(filter.movable_classes(), voc_movable_classes());
+  auto marked = [&filter](long id) {
+    FrameData f = frame(id);
+    f.labels = cv::Mat(240, 320, CV_8UC1, cv::Scalar(0));
+    f.labels(cv::Rect(0, 0, 100, 240)).setTo(15);    // a VOC person
+    f.labels(cv::Rect(200, 0, 120, 240)).setTo(24);  // another set's id for a person
+    filter.process(f, std::nullopt);
+    filter.frame_tracked(std::nullopt);
+    return std::pair{cv::countNonZero(f.dynamic(cv::Rect(0, 0, 100, 240))),
+                     cv::countNonZero(f.dynamic(cv::Rect(200, 0, 120, 240)))};
+  };
+  EXPECT_EQ(marked(0), std::pair(100 * 240, 0));
+  filter.set_movable_classes({24});
+  EXPECT_EQ(filter.movable_classes(), std::vector<int>{24});
+  EXPECT_EQ(marked(1), std::pair(0, 120 * 240));
+  // No semantic stage: no ids, and none to set.
+  DynamicFilter dm(DynamicFilterOptions::parse("Dynamic.stages: [dm]\n", "d.yaml"), Sensor::kRGBD,
+                   calibration(Sensor::kRGBD));
+  dm.set_movable_classes({24});
+  EXPECT_TRUE(dm.movable_classes().empty());
 }
 
 TEST(DynamicFilter, RemembersTheLastKeyframes) {
