@@ -59,6 +59,10 @@ class SlamNodeParamsTest(unittest.TestCase):
         self.assertEqual(done.returncode, 1, (message, done.stdout[-500:], done.stderr[-500:]))
         self.assertIn(message, done.stdout + done.stderr)
 
+    def test_movable_ids_must_be_label_ids(self):
+        self.assert_refused(self.run_node("refuse_ids", [], {"movable_ids": [15, -1]}),
+                            "~movable_ids: -1 is not a label id (0-65535)")
+
     def test_bad_values_refused_naming_the_parameter(self):
         for key, (value, message) in REFUSED.items():
             with self.subTest(key=key):
