@@ -445,6 +445,10 @@ PYBIND11_MODULE(_core, m) {
         return out;
       }, "[(map, stamps, poses)] for every map, in order: a lost map given up starts a new segment.")
       .def_property_readonly("dynamic_filter_enabled", &System::dynamic_filter_enabled)
+      .def_property_readonly("movable_classes", &System::movable_classes,
+                             "The dynamic filter's movable label ids (its semantic stage's; [] without one).")
+      .def("set_movable_classes", &System::set_movable_classes, py::arg("ids"),
+           "Replaces them between track calls (a label source announcing its own set).")
       .def("last_dynamic_mask", [](const System& s) { return to_numpy(s.last_dynamic_mask()); },
            "The dynamic filter's mask of the last frame (uint8 HxW, 255 = dynamic) in the input image's\n"
            "pixels; None when the filter is off or before a frame.")

@@ -183,6 +183,11 @@ def test_bindings_labels_mask_and_dense_frame(synth_rgbd):
     assert system.counters()["labels_dropped"] == 0
     system.track_rgbd(rgb, depth, 2.0, labels=np.zeros((10, 10), np.uint8))
     assert system.counters()["labels_dropped"] == 1
+    # Another label set's ids, announced after start-up: class 15 is no longer movable.
+    assert 15 in system.movable_classes
+    system.set_movable_classes([24])
+    assert system.movable_classes == [24]
+    assert system.track_rgbd(rgb, depth, 3.0, labels=labels).dynamic_fraction == 0
     off = _core.System(cfg, "rgbd")
     assert not off.dynamic_filter_enabled
     assert off.track_rgbd(rgb, depth, 1.0, labels=labels).dynamic_keypoints == 0
