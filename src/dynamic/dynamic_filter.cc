@@ -300,9 +300,10 @@ std::vector<int> DynamicFilter::movable_classes() const {
 }
 
 void DynamicFilter::set_movable_classes(const std::vector<int>& ids) {
+  if (ids.empty()) return;  // no set announced: the one in use stays
   o_.movable_classes = ids;
   for (const auto& stage : stages_)
-    if (auto* sem = dynamic_cast<SemanticStage*>(stage.get()); sem && !ids.empty()) sem->set_movable_classes(ids);
+    if (auto* sem = dynamic_cast<SemanticStage*>(stage.get())) sem->set_movable_classes(ids);
 }
 
 std::vector<std::string> DynamicFilter::stage_names() const {

@@ -139,7 +139,7 @@ class DynamicFilter {
   // The semantic stage's movable label ids (empty without that stage).
   std::vector<int> movable_classes() const;
   // Replaces them (options.movable_classes): a label source announcing its
-  // label set after start-up. Between process() calls.
+  // label set after start-up. Between process() calls; empty ids: unchanged.
   void set_movable_classes(const std::vector<int>& ids);
   Sensor sensor() const { return sensor_; }
   const std::shared_ptr<const map::Calibration>& calib() const { return calib_; }

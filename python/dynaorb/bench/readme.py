@@ -34,7 +34,8 @@ def summary(results: dict, source: str) -> str:
         if full:
             lines += ["dynaorb's `full` dynamic preset against ORB-SLAM3 in its plain mode (issue 8's speed "
                       "target: ms ours/theirs <= 1 with ATE no worse; the network, where one runs, is on its "
-                      "own thread and not in these ms, but the tracking thread's time for each frame's labels is):", "", *report.pair_table(full), ""]
+                      "own thread and not in these ms, but the tracking thread's time for each frame's labels "
+                      "is):", "", *report.pair_table(full), ""]
     else:
         lines += [f"ORB-SLAM3: {peer.get('status', 'not run')}.", ""]
     lines += ["dynaorb, every case (ATE RMSE median, min-max over the runs):", ""]
