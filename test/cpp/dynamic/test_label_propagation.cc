@@ -297,12 +297,13 @@ cv::Mat whole_image_chain(const cv::Mat& labels, const std::vector<cv::Mat>& gre
   }
   cv::Mat full;
   cv::resize(disp, full, labels.size(), 0, 0, cv::INTER_LINEAR);
-  const double sx = static_cast<double>(labels.cols) / disp.cols, sy = static_cast<double>(labels.rows) / disp.rows;
+  const float sx = static_cast<float>(static_cast<double>(labels.cols) / disp.cols);
+  const float sy = static_cast<float>(static_cast<double>(labels.rows) / disp.rows);
   cv::Mat map(labels.size(), CV_32FC2), out;
   for (int y = 0; y < map.rows; ++y)
     for (int x = 0; x < map.cols; ++x) {
       const cv::Vec2f d = full.at<cv::Vec2f>(y, x);
-      map.at<cv::Vec2f>(y, x) = cv::Vec2f(static_cast<float>(x + d[0] * sx), static_cast<float>(y + d[1] * sy));
+      map.at<cv::Vec2f>(y, x) = cv::Vec2f(static_cast<float>(x) + d[0] * sx, static_cast<float>(y) + d[1] * sy);
     }
   cv::remap(labels, out, map, cv::noArray(), cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
   return out;
