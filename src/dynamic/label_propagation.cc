@@ -158,20 +158,19 @@ cv::Mat sample_labels(const cv::Mat& labels, const cv::Rect& box, const cv::Mat&
                        scratch);
 }
 
-void check_ids(const std::vector<int>& ids) {
-  for (int id : ids)
-    if (id < 0 || id > 65535)
-      throw InputError("label propagation: class id " + std::to_string(id) + " is not a label id (0-65535)");
-}
-
 }  // namespace
 
 void LabelPropagationOptions::validate() const {
   check_scale(flow_scale);
-  check_ids(classes);
+  check_label_ids(classes, "label propagation: classes");
   if (!(max_age_s >= 0) || std::isinf(max_age_s))
     throw InputError("label propagation: max_age_s must be a finite number of seconds >= 0");
   if (frames_kept < 1) throw InputError("label propagation: frames_kept must be at least 1");
+}
+
+void check_label_ids(const std::vector<int>& ids, const std::string& what) {
+  for (int id : ids)
+    if (id < 0 || id > 65535) throw InputError(what + ": " + std::to_string(id) + " is not a label id (0-65535)");
 }
 
 const char* to_string(FrameLabels::Source source) {
@@ -188,7 +187,7 @@ const char* to_string(FrameLabels::Source source) {
 cv::Mat keep_classes(const cv::Mat& labels, const std::vector<int>& ids) {
   if (!is_labels(labels)) throw InputError("label propagation: labels must be one 8- or 16-bit channel");
   if (ids.empty()) return labels;
-  check_ids(ids);
+  check_label_ids(ids, "label propagation: classes");
   if (labels.depth() == CV_8U) {
     cv::Mat table(1, 256, CV_8UC1, cv::Scalar(0));
     for (int id : ids)
@@ -250,7 +249,7 @@ void LiveLabels::add_labels(double stamp, const cv::Mat& labels) {
 }
 
 void LiveLabels::set_classes(const std::vector<int>& ids) {
-  check_ids(ids);
+  check_label_ids(ids, "label propagation: classes");
   o_.classes = ids;
   for (auto& [stamp, image] : labels_) {
     image.labels = keep_classes(image.labels, ids);

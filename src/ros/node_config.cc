@@ -1,6 +1,7 @@
 #include "node_config.h"
 
 #include "dynaorb/dynamic/dynamic_filter.h"
+#include "dynaorb/dynamic/label_propagation.h"
 
 #include <ros/console.h>
 
@@ -182,8 +183,7 @@ NodeConfig read_config(const ros::NodeHandle& pnh) {
     throw InputError("~label_flow_scale must be in (0, 1] (the flow's resolution relative to the image)");
   if (n.max_frames_waiting < 1) throw InputError("~max_frames_waiting must be >= 1");
   n.movable_ids_given = read_param(pnh, "movable_ids", n.movable_ids);
-  for (int id : n.movable_ids)
-    if (id < 0 || id > 65535) throw InputError("~movable_ids: " + std::to_string(id) + " is not a label id (0-65535)");
+  dynamic::check_label_ids(n.movable_ids, "~movable_ids");
   if (!n.movable_ids_given) n.movable_ids = kPascalVocMovable;
   n.movable_ids_from = param_or<std::string>(pnh, "movable_ids_from", n.movable_ids_from);
   // Ids only mean something in the labels' own set: given, they are the filter's too.

@@ -10,7 +10,6 @@
 #include <tf2/LinearMath/Quaternion.h>
 #include <tf2_eigen/tf2_eigen.h>
 
-#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <sstream>
@@ -218,11 +217,15 @@ void SlamNode::on_labels(const sensor_msgs::ImageConstPtr& msg) {
   }
   if (counters_.labels_in++ == 0 && !cfg_.node.movable_ids_given && !cfg_.node.movable_ids_from.empty()) {
     std::vector<int> ids;
-    if (nh_.getParam(cfg_.node.movable_ids_from, ids) && !ids.empty() &&
-        !std::all_of(ids.begin(), ids.end(), [](int id) { return id >= 0 && id <= 65535; })) {
-      ROS_WARN("dynaorb_node: %s holds ids outside 0-65535: kept the movable classes as they were",
-               cfg_.node.movable_ids_from.c_str());
-    } else if (!ids.empty()) {
+    if (nh_.getParam(cfg_.node.movable_ids_from, ids) && !ids.empty()) {
+      try {
+        dynamic::check_label_ids(ids, cfg_.node.movable_ids_from);
+      } catch (const InputError& e) {  // a callback must not throw
+        ROS_WARN("dynaorb_node: %s: kept the movable classes as they were", e.what());
+        ids.clear();
+      }
+    }
+    if (!ids.empty()) {
       {
         std::lock_guard<std::mutex> lk(system_mutex_);  // ~stats reads them
         cfg_.node.movable_ids = ids;

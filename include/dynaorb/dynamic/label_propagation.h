@@ -30,6 +30,7 @@
 // needs no flow.
 #include <deque>
 #include <map>
+#include <string>
 #include <vector>
 #include <opencv2/core.hpp>
 #include <opencv2/video/tracking.hpp>
@@ -91,6 +92,10 @@ struct FrameLabels {
   double propagate_ms = 0;  // the flows' and the warp's time for this frame
 };
 const char* to_string(FrameLabels::Source source);
+
+// Throws InputError "<what>: <id> is not a label id (0-65535)" for the first
+// id outside the range of 8- and 16-bit label images.
+void check_label_ids(const std::vector<int>& ids, const std::string& what);
 
 // labels with every id not in `ids` set to background (0); `ids` empty: labels
 // as they are (not copied). Labels one 8- or 16-bit channel (InputError otherwise).
