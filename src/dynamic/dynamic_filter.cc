@@ -285,12 +285,8 @@ DynamicFilter::DynamicFilter(const DynamicFilterOptions& options, Sensor sensor,
                              std::shared_ptr<const map::Calibration> calib)
     : o_(options), sensor_(sensor), calib_(std::move(calib)) {
   o_.validate(sensor_);
-  for (const std::string& name : o_.stages_for(sensor_)) {
-    std::unique_ptr<Stage> stage = make_stage(o_, name);
-    if (auto* sem = dynamic_cast<SemanticStage*>(stage.get()); sem && !o_.movable_classes.empty())
-      sem->set_movable_classes(o_.movable_classes);
-    stages_.push_back(std::move(stage));
-  }
+  for (const std::string& name : o_.stages_for(sensor_)) stages_.push_back(make_stage(o_, name));
+  set_movable_classes(o_.movable_classes);  // the label source's own set, when given
 }
 
 std::vector<int> DynamicFilter::movable_classes() const {
