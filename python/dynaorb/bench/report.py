@@ -105,14 +105,8 @@ def pairs(rows: list[dict], preset: str = "off", records: list[dict] | None = No
         common = common_frames.compare(runs[o["case"]], runs[r["case"]], bench_dir) if records else None
         out.append({"sequence": r["sequence"], "sensor": r["sensor"], "ours": o, "theirs": r,
                     "ate_ratio": _ratio(o["ate_rmse"], r["ate_rmse"]),
-                    "ms_ratio": _ratio(_thread_ms(o), r["track_call_ms_median"]), "common": common})
+                    "ms_ratio": _ratio(o["thread_ms_median"], r["track_call_ms_median"]), "common": common})
     return out
-
-
-def _thread_ms(row: dict):
-    """A row's ms per frame for the pair table: the track call and, with a network behind the camera, the
-    labels taken and moved onto the frame before it (both on the tracking thread)."""
-    return row.get("thread_ms_median") or row["track_call_ms_median"]
 
 
 def preset_vs_off(rows: list[dict]) -> list[dict]:
@@ -203,7 +197,7 @@ def pair_table(ps: list[dict]) -> list[str]:
 
 
 def _ours_ms_cell(r: dict) -> str:
-    cell = _f(_thread_ms(r), "{:.1f}")
+    cell = _f(r["thread_ms_median"], "{:.1f}")
     if r.get("labels_ms_median") is not None:
         cell += f" ({_f(r['track_call_ms_median'], '{:.1f}')} + labels {r['labels_ms_median']:.1f})"
     return cell
