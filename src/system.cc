@@ -59,7 +59,6 @@ cv::Mat to_bgr(const cv::Mat& in, bool rgb_order) {
   return bgr;
 }
 
-
 }  // namespace
 
 // A tracked frame, kept relative to its reference keyframe so that the
