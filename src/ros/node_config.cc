@@ -177,6 +177,7 @@ NodeConfig read_config(const ros::NodeHandle& pnh) {
   n.max_label_age = seconds_param_or(pnh, "max_label_age", n.max_label_age);
   n.first_labels_timeout = seconds_param_or(pnh, "first_labels_timeout", n.first_labels_timeout, " (0: no wait)");
   n.expect_labels = param_or(pnh, "expect_labels", n.expect_labels);
+  n.time_jump_reset = seconds_param_or(pnh, "time_jump_reset", n.time_jump_reset, " (0: off)");
   n.propagate_labels = param_or(pnh, "propagate_labels", n.propagate_labels);
   n.label_flow_scale = param_or(pnh, "label_flow_scale", n.label_flow_scale);
   if (!(n.label_flow_scale > 0 && n.label_flow_scale <= 1))
@@ -255,6 +256,9 @@ std::string describe(const NodeConfig& cfg) {
     wait << "; the first waited for at most " << n.first_labels_timeout << " s"
          << (n.expect_labels ? ", publisher or not (~expect_labels)" : "");
   const std::string first_wait = wait.str();
+  std::ostringstream jump;
+  if (n.time_jump_reset > 0) jump << "; a new map when time goes back over " << n.time_jump_reset << " s";
+  else jump << "; frames older than the newest refused";
   std::ostringstream out;
   out << "sensor " << to_string(n.sensor) << ", settings " << (cfg.settings.source.empty() ? "<params>" : cfg.settings.source)
       << ", vocabulary " << (cfg.vocabulary_path.empty() ? "none" : cfg.vocabulary_path) << ", dynamic "
@@ -267,6 +271,7 @@ std::string describe(const NodeConfig& cfg) {
       << (n.use_labels ? (n.wait_for_labels ? ", labels (waited for)"
                                             : ", labels (newest" + first_wait +
                                                   (n.propagate_labels ? "; moved by optical flow" : "; as they are") + ")") : ", no labels")
+      << jump.str()
       << "; cloud " << (n.publish_cloud ? "max depth " + std::to_string(n.cloud.max_depth) + " m, stride " +
                                                std::to_string(n.cloud.stride)
                                          : "off");

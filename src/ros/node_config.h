@@ -63,6 +63,13 @@ struct NodeOptions {
   // be starting); a publisher that connects and then goes away still ends
   // the wait. false: with no publisher connected nothing waits.
   bool expect_labels = false;
+  // A frame stamped more than this many seconds before the newest frame so
+  // far means time went back (a bag played again or looped, `rosbag play
+  // -l`; a simulator reset): the map is dropped and the frames from there on
+  // start a new one, as ~reset does (~stats time_jumps; labels stamped that
+  // far back drop the labels kept likewise). 0: frames older than the newest
+  // are refused (rejected: stamp_not_increasing) until time passes it again.
+  double time_jump_reset = 1.0;
   // Label ids masked: ~movable_ids; without it, those the segmentation server
   // announces (~movable_ids_from, its ~movable_ids parameter) once labels
   // arrive, else PASCAL VOC's movable classes.

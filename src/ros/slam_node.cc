@@ -237,9 +237,19 @@ void SlamNode::on_labels(const sensor_msgs::ImageConstPtr& msg) {
       ROS_INFO("dynaorb_node: masking the %zu movable classes of %s", ids.size(), cfg_.node.movable_ids_from.c_str());
     }
   }
-  labels_[msg->header.stamp.toSec()] = labels;
+  const double stamp = msg->header.stamp.toSec();
+  if (went_back(stamp, newest_label_stamp_)) {
+    // Labels of the time before would stand in the new time's way (the newest kept, the oldest dropped first).
+    ROS_WARN("dynaorb_node: labels went back %.3f s (%.6f after %.6f): the labels kept are dropped",
+             newest_label_stamp_ - stamp, stamp, newest_label_stamp_);
+    labels_.clear();
+    if (live_labels_) live_labels_->clear();
+    newest_label_stamp_ = stamp;
+  }
+  newest_label_stamp_ = std::max(newest_label_stamp_, stamp);
+  labels_[stamp] = labels;
   while (labels_.size() > 64) labels_.erase(labels_.begin());
-  if (live_labels_) live_labels_->add_labels(msg->header.stamp.toSec(), labels);
+  if (live_labels_) live_labels_->add_labels(stamp, labels);
   if (cfg_.node.wait_for_labels) {
     drain_waiting(false);
   } else if (!first_labels_done_) {
@@ -262,9 +272,41 @@ void SlamNode::on_label_timer(const ros::WallTimerEvent&) {
   if (waited > cfg_.node.first_labels_timeout || gone) end_first_labels_wait(true);
 }
 
+bool SlamNode::went_back(double stamp, double newest) const {
+  const double limit = cfg_.node.time_jump_reset;
+  return limit > 0 && std::isfinite(newest) && stamp < newest - limit;
+}
+
+void SlamNode::restart_after_time_jump(double stamp) {
+  const double back = newest_frame_stamp_ - stamp;
+  // Frames held for labels belong to the time before: answered as they would have been.
+  while (!waiting_.empty()) {
+    const FrameInput f = waiting_.front().first;
+    waiting_.pop_front();
+    ++counters_.labels_missing;
+    process(f, cv::Mat(), -1.0);
+  }
+  {
+    std::lock_guard<std::mutex> lk(system_mutex_);
+    if (system_) system_->reset();
+    map_restarted_ = true;
+    last_tracked_ = false;
+  }
+  ++counters_.time_jumps;
+  ROS_WARN("dynaorb_node: time went back %.3f s (frame %.6f after %.6f: a bag played again, a simulator reset): "
+           "map dropped, the frames from here start a new one (~time_jump_reset %.3g s)",
+           back, stamp, newest_frame_stamp_, cfg_.node.time_jump_reset);
+}
+
 void SlamNode::offer(FrameInput frame) {
   ++counters_.frames_in;
   const NodeOptions& n = cfg_.node;
+  const double stamp = frame.header.stamp.toSec();
+  if (went_back(stamp, newest_frame_stamp_)) {
+    restart_after_time_jump(stamp);
+    newest_frame_stamp_ = stamp;
+  }
+  newest_frame_stamp_ = std::max(newest_frame_stamp_, stamp);
   if (!n.use_labels) {
     process(frame, cv::Mat(), -1.0);
     return;
@@ -848,7 +890,7 @@ std::string SlamNode::stats_json() const {
       << ", \"first_labels_timed_out\": " << c.first_labels_timed_out.load() << ", \"tf_failures\": " << c.tf_failures.load()
       << ", \"clouds\": " << c.clouds.load() << ", \"cloud_failures\": " << c.cloud_failures.load()
       << ", \"inpainted_clouds\": " << c.inpainted_clouds.load()
-      << ", \"unchecked_clouds\": " << c.unchecked_clouds.load();
+      << ", \"unchecked_clouds\": " << c.unchecked_clouds.load() << ", \"time_jumps\": " << c.time_jumps.load();
   std::lock_guard<std::mutex> lk(system_mutex_);
   if (system_) {
     const SystemCounters& s = system_->counters();

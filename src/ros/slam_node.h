@@ -34,6 +34,7 @@
 #include <tf2_ros/transform_listener.h>
 
 #include <atomic>
+#include <cmath>
 #include <deque>
 #include <map>
 #include <memory>
@@ -69,6 +70,8 @@ struct NodeCounters {
   std::atomic<long> tf_failures{0}, clouds{0}, cloud_failures{0}, inpainted_clouds{0};
   // Keyframe clouds that left out movable-class regions the filter could not check (no previous frame).
   std::atomic<long> unchecked_clouds{0};
+  // Frames stamped more than ~time_jump_reset before the newest one: time went back, the map was dropped.
+  std::atomic<long> time_jumps{0};
 };
 
 class SlamNode {
@@ -91,6 +94,12 @@ class SlamNode {
 
   // Labels join: frames wait for theirs (~wait_for_labels) or take the newest.
   void offer(FrameInput frame);
+  // Whether `stamp` lies more than ~time_jump_reset before `newest` (a bag
+  // played again, a simulator reset).
+  bool went_back(double stamp, double newest) const;
+  // Time went back to `stamp`: the frames held for labels are answered,
+  // then the map is dropped as by ~reset; the next frame starts a new one.
+  void restart_after_time_jump(double stamp);
   void drain_waiting(bool timed_out);
   // Live: the newest labels within ~max_label_age (moved onto the frame by
   // optical flow with ~propagate_labels), or none (counted).
@@ -149,6 +158,7 @@ class SlamNode {
   ros::Subscriber sub_mono_, sub_labels_, sub_info_left_, sub_info_right_;
   sensor_msgs::CameraInfoConstPtr info_left_, info_right_;
   std::map<double, cv::Mat> labels_;  // by stamp, newest kept
+  double newest_frame_stamp_ = -INFINITY, newest_label_stamp_ = -INFINITY;  // ~time_jump_reset
   std::unique_ptr<dynamic::LiveLabels> live_labels_;  // live: which labels each frame gets
   // Frames waiting for labels: each for its own (~wait_for_labels), or live
   // all for the first labels (~first_labels_timeout).

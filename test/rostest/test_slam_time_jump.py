@@ -1,0 +1,110 @@
+#!/usr/bin/env python3
+"""rostest: dynaorb_node when time goes back (a bag played again or looped, a simulator reset).
+
+KITTI 06's first frames are published to two stereo nodes, then its first frames again with
+their own stamps, as `rosbag play -l` replays a bag. Each frame is published once the nodes
+answered the one before on tracking_state. The node with ~time_jump_reset (default 1 s) drops
+its map at the first replayed frame and tracks the replay in a new one (~stats time_jumps 1);
+the node with ~time_jump_reset 0 refuses every replayed frame as out of order.
+"""
+import json
+import pathlib
+import sys
+import threading
+import unittest
+
+import cv2
+import rospy
+import rostest
+from sensor_msgs.msg import Image
+from std_srvs.srv import Trigger
+
+from dynaorb.msg import TrackingStatus
+
+NODES = ("reset", "off")
+FIRST_PASS = 20  # frames, then the first REPLAY of them again
+REPLAY = 12
+BASE = 1000.0    # s added to KITTI's stamps (which start at 0)
+
+
+def mono8(path: pathlib.Path, stamp: rospy.Time, frame_id: str) -> Image:
+    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    if image is None:
+        raise FileNotFoundError(f"{path}: not a readable image")
+    msg = Image()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.height, msg.width = image.shape
+    msg.encoding = "mono8"
+    msg.step = image.shape[1]
+    msg.data = image.tobytes()
+    return msg
+
+
+class SlamTimeJumpTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node("test_slam_time_jump")
+        seq = pathlib.Path(rospy.get_param("~sequence"))
+        times = [float(t) for t in (seq / "times.txt").read_text().split()]
+        frames = list(range(FIRST_PASS)) + list(range(REPLAY))
+        cls.answers = {n: [] for n in NODES}
+        cond = threading.Condition()
+
+        def on_status(msg: TrackingStatus, node: str) -> None:
+            with cond:
+                cls.answers[node].append(msg)
+                cond.notify_all()
+
+        subs = [rospy.Subscriber(f"/{n}/tracking_state", TrackingStatus, on_status, n, queue_size=100) for n in NODES]
+        pubs = {(n, side): rospy.Publisher(f"/{n}/{side}/image_rect", Image, queue_size=5)
+                for n in NODES for side in ("left", "right")}
+        for n in NODES:
+            rospy.wait_for_service(f"/{n}/dynaorb_node/stats", timeout=60)
+        deadline = rospy.Time.now() + rospy.Duration(20)
+        while any(p.get_num_connections() == 0 for p in pubs.values()):
+            if rospy.Time.now() > deadline:
+                raise RuntimeError("dynaorb_node did not subscribe to the image topics")
+            rospy.sleep(0.1)
+        for k, i in enumerate(frames):
+            stamp = rospy.Time.from_sec(BASE + times[i])
+            left = mono8(seq / "image_0" / f"{i:06d}.png", stamp, "camera_left_optical_frame")
+            right = mono8(seq / "image_1" / f"{i:06d}.png", stamp, "camera_left_optical_frame")
+            for n in NODES:
+                pubs[n, "left"].publish(left)
+                pubs[n, "right"].publish(right)
+            with cond:
+                if not cond.wait_for(lambda: all(len(cls.answers[n]) > k for n in NODES), timeout=30):
+                    raise RuntimeError(f"no answer on tracking_state for published frame {k} "
+                                       f"({ {n: len(a) for n, a in cls.answers.items()} })")
+        for s in subs:
+            s.unregister()
+        cls.stats = {n: json.loads(rospy.ServiceProxy(f"/{n}/dynaorb_node/stats", Trigger)().message)
+                     for n in NODES}
+
+    def test_first_pass_tracked_by_both(self):
+        for n in NODES:
+            first = self.answers[n][:FIRST_PASS]
+            self.assertEqual([a.state for a in first], ["OK"] * FIRST_PASS, n)
+            self.assertEqual(first[0].method, "init", n)
+
+    def test_replay_starts_a_new_map(self):
+        replay = self.answers["reset"][FIRST_PASS:]
+        self.assertEqual(len(replay), REPLAY)
+        self.assertEqual([a.rejected for a in replay], ["none"] * REPLAY)
+        self.assertEqual([a.state for a in replay], ["OK"] * REPLAY)
+        self.assertEqual(replay[0].method, "init")  # a new map from the first replayed frame
+        self.assertTrue(all(a.method != "init" for a in replay[1:]))
+        self.assertEqual(self.stats["reset"]["time_jumps"], 1)
+        self.assertEqual(self.stats["reset"]["rejected"], 0)
+
+    def test_without_the_reset_the_replay_is_refused(self):
+        replay = self.answers["off"][FIRST_PASS:]
+        self.assertEqual(len(replay), REPLAY)
+        self.assertEqual([a.rejected for a in replay], ["stamp_not_increasing"] * REPLAY)
+        self.assertEqual(self.stats["off"]["time_jumps"], 0)
+        self.assertEqual(self.stats["off"]["rejected"], REPLAY)
+
+
+if __name__ == "__main__":
+    rostest.rosrun("dynaorb", "slam_time_jump", SlamTimeJumpTest, sys.argv)
