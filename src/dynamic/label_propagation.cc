@@ -263,6 +263,13 @@ void LiveLabels::clear() {
   have_disp_ = false;
 }
 
+void LiveLabels::forget_after(double stamp) {
+  labels_.erase(labels_.upper_bound(stamp), labels_.end());
+  const size_t before = frames_.size();
+  while (!frames_.empty() && frames_.back().stamp > stamp) frames_.pop_back();
+  if (frames_.size() != before) have_disp_ = false;  // the chained flow ended at a frame now gone
+}
+
 int LiveLabels::frame_index(double stamp) const {
   for (int i = static_cast<int>(frames_.size()) - 1; i >= 0; --i)
     if (std::abs(frames_[i].stamp - stamp) <= kSameStamp) return i;

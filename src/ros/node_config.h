@@ -66,9 +66,10 @@ struct NodeOptions {
   // A frame stamped more than this many seconds before the newest frame so
   // far means time went back (a bag played again or looped, `rosbag play
   // -l`; a simulator reset): the map is dropped and the frames from there on
-  // start a new one, as ~reset does (~stats time_jumps; labels stamped that
-  // far back drop the labels kept likewise). 0: frames older than the newest
-  // are refused (rejected: stamp_not_increasing) until time passes it again.
+  // start a new one, as ~reset does (~stats time_jumps); the labels kept
+  // that are stamped after it are dropped (the time before's), as they are
+  // when labels go back as far. 0: frames older than the newest are refused
+  // (rejected: stamp_not_increasing) until time passes it again.
   double time_jump_reset = 1.0;
   // Label ids masked: ~movable_ids; without it, those the segmentation server
   // announces (~movable_ids_from, its ~movable_ids parameter) once labels

@@ -240,10 +240,9 @@ void SlamNode::on_labels(const sensor_msgs::ImageConstPtr& msg) {
   const double stamp = msg->header.stamp.toSec();
   if (went_back(stamp, newest_label_stamp_)) {
     // Labels of the time before would stand in the new time's way (the newest kept, the oldest dropped first).
-    ROS_WARN("dynaorb_node: labels went back %.3f s (%.6f after %.6f): the labels kept are dropped",
+    ROS_WARN("dynaorb_node: labels went back %.3f s (%.6f after %.6f): the labels of the time before are dropped",
              newest_label_stamp_ - stamp, stamp, newest_label_stamp_);
-    labels_.clear();
-    if (live_labels_) live_labels_->clear();
+    forget_labels_after(stamp);
     newest_label_stamp_ = stamp;
   }
   newest_label_stamp_ = std::max(newest_label_stamp_, stamp);
@@ -277,6 +276,11 @@ bool SlamNode::went_back(double stamp, double newest) const {
   return limit > 0 && std::isfinite(newest) && stamp < newest - limit;
 }
 
+void SlamNode::forget_labels_after(double stamp) {
+  labels_.erase(labels_.upper_bound(stamp), labels_.end());
+  if (live_labels_) live_labels_->forget_after(stamp);
+}
+
 void SlamNode::restart_after_time_jump(double stamp) {
   const double back = newest_frame_stamp_ - stamp;
   // Frames held for labels belong to the time before: answered as they would have been.
@@ -286,6 +290,8 @@ void SlamNode::restart_after_time_jump(double stamp) {
     ++counters_.labels_missing;
     process(f, cv::Mat(), -1.0);
   }
+  // Labels of the time before: every label stamped after this frame (its own may have come already).
+  forget_labels_after(stamp);
   {
     std::lock_guard<std::mutex> lk(system_mutex_);
     if (system_) system_->reset();

@@ -100,6 +100,9 @@ class SlamNode {
   // Time went back to `stamp`: the frames held for labels are answered,
   // then the map is dropped as by ~reset; the next frame starts a new one.
   void restart_after_time_jump(double stamp);
+  // Drops the labels kept that are stamped after `stamp` (the time before a jump back:
+  // labels come in stamp order, so none of the new time's is later than its newest frame or label).
+  void forget_labels_after(double stamp);
   void drain_waiting(bool timed_out);
   // Live: the newest labels within ~max_label_age (moved onto the frame by
   // optical flow with ~propagate_labels), or none (counted).

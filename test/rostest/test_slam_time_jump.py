@@ -1,11 +1,16 @@
 #!/usr/bin/env python3
 """rostest: dynaorb_node when time goes back (a bag played again or looped, a simulator reset).
 
-KITTI 06's first frames are published to two stereo nodes, then its first frames again with
-their own stamps, as `rosbag play -l` replays a bag. Each frame is published once the nodes
+KITTI 06's first 20 frames are published to stereo nodes, then its first 12 again stamped
+0.5 s later than the first time: time goes back 1.4 s, as when a simulator is reset or a bag
+played again (`rosbag play -l` gives the same stamps again; these do not meet the first
+ones, so no label of the time before can pass for one of the replay's). Each frame is published once the nodes
 answered the one before on tracking_state. The node with ~time_jump_reset (default 1 s) drops
 its map at the first replayed frame and tracks the replay in a new one (~stats time_jumps 1);
-the node with ~time_jump_reset 0 refuses every replayed frame as out of order.
+the node with ~time_jump_reset 0 refuses every replayed frame as out of order. A third node
+waits for each frame's labels (~wait_for_labels; label images published just after the
+frame): the labels of the time before are dropped at the jump (kept, they would tell the first
+replayed frame that its labels had passed), and every replayed frame is tracked with its own.
 """
 import json
 import pathlib
@@ -21,10 +26,11 @@ from std_srvs.srv import Trigger
 
 from dynaorb.msg import TrackingStatus
 
-NODES = ("reset", "off")
+NODES = ("reset", "off", "labels")
 FIRST_PASS = 20  # frames, then the first REPLAY of them again
 REPLAY = 12
 BASE = 1000.0    # s added to KITTI's stamps (which start at 0)
+SHIFT = 0.5      # s added to the replay's
 
 
 def mono8(path: pathlib.Path, stamp: rospy.Time, frame_id: str) -> Image:
@@ -59,6 +65,7 @@ class SlamTimeJumpTest(unittest.TestCase):
         subs = [rospy.Subscriber(f"/{n}/tracking_state", TrackingStatus, on_status, n, queue_size=100) for n in NODES]
         pubs = {(n, side): rospy.Publisher(f"/{n}/{side}/image_rect", Image, queue_size=5)
                 for n in NODES for side in ("left", "right")}
+        pubs["labels", "labels"] = rospy.Publisher("/labels/semantic/labels", Image, queue_size=5)
         for n in NODES:
             rospy.wait_for_service(f"/{n}/dynaorb_node/stats", timeout=60)
         deadline = rospy.Time.now() + rospy.Duration(20)
@@ -67,12 +74,17 @@ class SlamTimeJumpTest(unittest.TestCase):
                 raise RuntimeError("dynaorb_node did not subscribe to the image topics")
             rospy.sleep(0.1)
         for k, i in enumerate(frames):
-            stamp = rospy.Time.from_sec(BASE + times[i])
+            stamp = rospy.Time.from_sec(BASE + times[i] + (SHIFT if k >= FIRST_PASS else 0.0))
             left = mono8(seq / "image_0" / f"{i:06d}.png", stamp, "camera_left_optical_frame")
             right = mono8(seq / "image_1" / f"{i:06d}.png", stamp, "camera_left_optical_frame")
             for n in NODES:
                 pubs[n, "left"].publish(left)
                 pubs[n, "right"].publish(right)
+            # The labels after their frame, as a segmentation server's come: the frame waits for them.
+            rospy.sleep(0.05)
+            pubs["labels", "labels"].publish(Image(header=left.header, height=left.height, width=left.width,
+                                                   encoding="mono8", step=left.width,
+                                                   data=bytes(left.width * left.height)))  # background only
             with cond:
                 if not cond.wait_for(lambda: all(len(cls.answers[n]) > k for n in NODES), timeout=30):
                     raise RuntimeError(f"no answer on tracking_state for published frame {k} "
@@ -97,6 +109,14 @@ class SlamTimeJumpTest(unittest.TestCase):
         self.assertTrue(all(a.method != "init" for a in replay[1:]))
         self.assertEqual(self.stats["reset"]["time_jumps"], 1)
         self.assertEqual(self.stats["reset"]["rejected"], 0)
+
+    def test_labels_of_the_replay_are_used(self):
+        answers = self.answers["labels"]
+        self.assertEqual([a.state for a in answers], ["OK"] * (FIRST_PASS + REPLAY))
+        self.assertEqual(answers[FIRST_PASS].method, "init")
+        self.assertTrue(all(a.mask_used and a.label_age == 0.0 for a in answers), [a.label_age for a in answers])
+        self.assertEqual(self.stats["labels"]["time_jumps"], 1)
+        self.assertEqual(self.stats["labels"]["labels_missing"], 0)
 
     def test_without_the_reset_the_replay_is_refused(self):
         replay = self.answers["off"][FIRST_PASS:]

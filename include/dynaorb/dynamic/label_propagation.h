@@ -116,6 +116,9 @@ class LiveLabels {
   FrameLabels labels_for(double stamp, const cv::Mat& grey);
   // Forgets frames and labels (a new camera, a reset).
   void clear();
+  // Forgets the label images and frames stamped after `stamp` (time went
+  // back: a bag played again, a simulator reset; they belong to the time before).
+  void forget_after(double stamp);
   // How many of labels_for's answers came from each source.
   long count(FrameLabels::Source source) const { return counts_[static_cast<int>(source)]; }
 

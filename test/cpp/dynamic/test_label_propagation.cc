@@ -200,6 +200,38 @@ TEST(LiveLabels, FreshAsIsStaleAndReset) {
   EXPECT_EQ(l.source, FrameLabels::Source::kNone);
 }
 
+// Time going back (a bag played again): the labels kept of the time before
+// are the newest, so the capped store drops the new time's labels first;
+// forget_after clears the way.
+TEST(LiveLabels, TimeGoingBackForgetsTheLabelsOfTheTimeBefore) {
+  const Scene scene;
+  LabelPropagationOptions o;
+  o.frames_kept = 4;
+  for (const bool forget : {false, true}) {
+    LiveLabels live(o);
+    for (int k = 0; k < 4; ++k) {
+      const double t = 10.0 + 0.1 * k;
+      live.labels_for(t, scene.grey(4 * k, 100 + 8 * k));
+      live.add_labels(t, Scene::labels(100 + 8 * k));
+    }
+    if (forget) live.forget_after(1.0);  // the node: the stamp of the first frame or label that went back
+    live.add_labels(1.0, Scene::labels(140));
+    const FrameLabels l = live.labels_for(1.0, scene.grey(0, 140));
+    if (!forget) {
+      // The new labels were dropped as the oldest; those kept are 9 s away: stale.
+      EXPECT_EQ(l.source, FrameLabels::Source::kStale);
+      EXPECT_TRUE(l.labels.empty());
+      continue;
+    }
+    EXPECT_EQ(l.source, FrameLabels::Source::kFresh);
+    EXPECT_EQ(cv::countNonZero(l.labels != Scene::labels(140)), 0);
+    // Labels of the new time from then on: moved onto the next frame.
+    const FrameLabels next = live.labels_for(1.1, scene.grey(4, 148));
+    EXPECT_EQ(next.source, FrameLabels::Source::kPropagated);
+    EXPECT_GT(iou(next.labels, Scene::labels(148)), 0.8);
+  }
+}
+
 TEST(LiveLabels, WithoutPropagationLabelsStayAsTheyAre) {
   const Scene scene;
   LabelPropagationOptions o;
