@@ -72,6 +72,9 @@ void bind_labels(py::module_& m) {
           "(labels or None, source: fresh | propagated | as_is | stale | none, age (-1: none),\n"
           "propagation ms) for the frame; frames in stamp order.")
       .def("clear", &LiveLabels::clear)
+      .def("forget_after", &LiveLabels::forget_after, py::arg("stamp"),
+           "Forgets the label images and frames stamped after `stamp` (time went back: a bag\n"
+           "played again, a simulator reset; they belong to the time before).")
       .def(
           "count",
           [](const LiveLabels& l, const std::string& source) {

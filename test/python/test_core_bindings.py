@@ -255,3 +255,28 @@ def test_non_contiguous_arrays_cross_as_copies(data):
     for variant in (np.asfortranarray, lambda m: np.hstack([m, m])[:, : m.shape[1]]):
         got = prop.warp(variant(labels), variant(a), variant(b))
         assert np.array_equal(got, expected)
+
+
+def test_live_labels_forget_the_time_before(data):
+    """LiveLabels.forget_after: time went back (a bag played again); the labels of the time
+    before are dropped, and the new time's frames get their own (a capped store would
+    otherwise drop the new labels first, as the oldest)."""
+    import cv2
+
+    grey = cv2.imread(str(sorted((data / "kitti" / "sequences" / "06" / "image_0").glob("*.png"))[0]),
+                      cv2.IMREAD_GRAYSCALE)
+    labels = np.zeros_like(grey)
+    labels[100:200, 300:400] = 7
+    for forget in (False, True):
+        live = core().LiveLabels(frames_kept=4)
+        for k in range(4):
+            live.labels_for(10.0 + 0.1 * k, grey)
+            live.add_labels(10.0 + 0.1 * k, labels)
+        if forget:
+            live.forget_after(1.0)
+        live.add_labels(1.0, labels)
+        got, source, age, _ = live.labels_for(1.0, grey)
+        if forget:
+            assert source == "fresh" and age == 0.0 and np.array_equal(got, labels)
+        else:
+            assert source == "stale" and got is None
