@@ -7,6 +7,7 @@
 #include <visualization_msgs/MarkerArray.h>
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <map>
 
@@ -32,6 +33,7 @@ OctomapNode::OctomapNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh
   frame_id_ = param_or<std::string>(pnh_, "frame_id", "map");
   projected_map_ = param_or(pnh_, "projected_map", true);
   const bool latch = param_or(pnh_, "latch", true);
+  time_jump_reset_ = seconds_param_or(pnh_, "time_jump_reset", time_jump_reset_, " (0: off)");
 
   pub_centres_ = nh_.advertise<sensor_msgs::PointCloud2>("octomap_point_cloud_centers", 1, latch);
   pub_markers_ = nh_.advertise<visualization_msgs::MarkerArray>("occupied_cells_vis_array", 1, latch);
@@ -57,6 +59,16 @@ OctomapNode::OctomapNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh
 }
 
 void OctomapNode::on_cloud(const sensor_msgs::PointCloud2ConstPtr& cloud) {
+  const double stamp = cloud->header.stamp.toSec();
+  if (time_jump_reset_ > 0 && std::isfinite(newest_stamp_) && stamp < newest_stamp_ - time_jump_reset_) {
+    map_->reset();
+    ++time_jumps_;
+    ROS_WARN("dynaorb_octomap: time went back %.3f s (cloud %.6f after %.6f: a bag played again, a simulator "
+             "reset): map reset (%ld so far; ~time_jump_reset %.3g s)",
+             newest_stamp_ - stamp, stamp, newest_stamp_, time_jumps_, time_jump_reset_);
+    newest_stamp_ = stamp;
+  }
+  newest_stamp_ = std::max(newest_stamp_, stamp);
   Eigen::Isometry3d T_map_sensor;
   try {
     T_map_sensor = tf2::transformToEigen(

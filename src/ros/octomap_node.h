@@ -16,7 +16,10 @@
 //             ~pointcloud_min_z / ~pointcloud_max_z (unbounded), ~occupancy_min_z /
 //             ~occupancy_max_z (cells published and projected; unbounded), ~latch
 //             (true), ~projected_map (true), ~queue_size (clouds waiting for TF or
-//             insertion, 5).
+//             insertion, 5); ours: ~time_jump_reset (1 s: a cloud stamped more than
+//             this before the newest one, time went back - a bag played again, a
+//             simulator reset, as dynaorb_node drops its map then - resets the map;
+//             0: off).
 #include <message_filters/subscriber.h>
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>
@@ -25,6 +28,7 @@
 #include <tf2_ros/message_filter.h>
 #include <tf2_ros/transform_listener.h>
 
+#include <limits>
 #include <memory>
 
 #include "dynaorb/ClearBBX.h"
@@ -57,6 +61,9 @@ class OctomapNode {
   ros::Publisher pub_centres_, pub_markers_, pub_grid_;
   ros::ServiceServer srv_reset_, srv_clear_, srv_save_;
   long tf_failures_ = 0;
+  double time_jump_reset_ = 1.0;
+  double newest_stamp_ = -std::numeric_limits<double>::infinity();
+  long time_jumps_ = 0;
 };
 
 }  // namespace dynaorb::node

@@ -115,7 +115,9 @@ class SlamNodeParamsTest(unittest.TestCase):
         # roslaunch reads value="-1e9" as the string "-1e9" (no '.'): refused, not ignored.
         for key, value, message in (("resolution", "fine", "~resolution must be a number"),
                                     ("pointcloud_min_z", "-1e9", "~pointcloud_min_z must be a number"),
-                                    ("latch", 1, "~latch must be true or false")):
+                                    ("latch", 1, "~latch must be true or false"),
+                                    ("time_jump_reset", -1.0,
+                                     "~time_jump_reset must be a finite number of seconds >= 0")):
             with self.subTest(key=key):
                 self.assert_refused(self.run_node("refuse_octomap", [], {key: value}, octomap=True), message)
 
