@@ -7,12 +7,12 @@
 #include <visualization_msgs/MarkerArray.h>
 
 #include <algorithm>
-#include <cmath>
 #include <limits>
 #include <map>
 
 #include "ros_conversions.h"
 #include "ros_params.h"
+#include "time_jump.h"
 
 namespace dynaorb::node {
 
@@ -60,7 +60,7 @@ OctomapNode::OctomapNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh
 
 void OctomapNode::on_cloud(const sensor_msgs::PointCloud2ConstPtr& cloud) {
   const double stamp = cloud->header.stamp.toSec();
-  if (time_jump_reset_ > 0 && std::isfinite(newest_stamp_) && stamp < newest_stamp_ - time_jump_reset_) {
+  if (time_went_back(stamp, newest_stamp_, time_jump_reset_)) {
     map_->reset();
     ++time_jumps_;
     ROS_WARN("dynaorb_octomap: time went back %.3f s (cloud %.6f after %.6f: a bag played again, a simulator "

@@ -17,6 +17,7 @@
 #include "dynaorb/core/grey_image.h"
 #include "dynaorb/io/errors.h"
 #include "ros_conversions.h"
+#include "time_jump.h"
 
 namespace dynaorb::node {
 
@@ -238,7 +239,7 @@ void SlamNode::on_labels(const sensor_msgs::ImageConstPtr& msg) {
     }
   }
   const double stamp = msg->header.stamp.toSec();
-  if (went_back(stamp, newest_label_stamp_)) {
+  if (time_went_back(stamp, newest_label_stamp_, cfg_.node.time_jump_reset)) {
     // Labels of the time before would stand in the new time's way (the newest kept, the oldest dropped first).
     ROS_WARN("dynaorb_node: labels went back %.3f s (%.6f after %.6f): the labels of the time before are dropped",
              newest_label_stamp_ - stamp, stamp, newest_label_stamp_);
@@ -269,11 +270,6 @@ void SlamNode::on_label_timer(const ros::WallTimerEvent&) {
   const double waited = (ros::WallTime::now() - first_wait_start_).toSec();
   const bool gone = !connected && (labels_publisher_seen_ || !cfg_.node.expect_labels);
   if (waited > cfg_.node.first_labels_timeout || gone) end_first_labels_wait(true);
-}
-
-bool SlamNode::went_back(double stamp, double newest) const {
-  const double limit = cfg_.node.time_jump_reset;
-  return limit > 0 && std::isfinite(newest) && stamp < newest - limit;
 }
 
 void SlamNode::forget_labels_after(double stamp) {
@@ -308,7 +304,7 @@ void SlamNode::offer(FrameInput frame) {
   ++counters_.frames_in;
   const NodeOptions& n = cfg_.node;
   const double stamp = frame.header.stamp.toSec();
-  if (went_back(stamp, newest_frame_stamp_)) {
+  if (time_went_back(stamp, newest_frame_stamp_, cfg_.node.time_jump_reset)) {
     restart_after_time_jump(stamp);
     newest_frame_stamp_ = stamp;
   }

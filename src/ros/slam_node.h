@@ -94,9 +94,6 @@ class SlamNode {
 
   // Labels join: frames wait for theirs (~wait_for_labels) or take the newest.
   void offer(FrameInput frame);
-  // Whether `stamp` lies more than ~time_jump_reset before `newest` (a bag
-  // played again, a simulator reset).
-  bool went_back(double stamp, double newest) const;
   // Time went back to `stamp`: the frames held for labels are answered,
   // then the map is dropped as by ~reset; the next frame starts a new one.
   void restart_after_time_jump(double stamp);
