@@ -304,7 +304,7 @@ void SlamNode::offer(FrameInput frame) {
   ++counters_.frames_in;
   const NodeOptions& n = cfg_.node;
   const double stamp = frame.header.stamp.toSec();
-  if (time_went_back(stamp, newest_frame_stamp_, cfg_.node.time_jump_reset)) {
+  if (time_went_back(stamp, newest_frame_stamp_, n.time_jump_reset)) {
     restart_after_time_jump(stamp);
     newest_frame_stamp_ = stamp;
   }
