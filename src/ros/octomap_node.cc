@@ -12,7 +12,6 @@
 
 #include "ros_conversions.h"
 #include "ros_params.h"
-#include "time_jump.h"
 
 namespace dynaorb::node {
 
@@ -60,15 +59,13 @@ OctomapNode::OctomapNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh
 
 void OctomapNode::on_cloud(const sensor_msgs::PointCloud2ConstPtr& cloud) {
   const double stamp = cloud->header.stamp.toSec();
-  if (time_went_back(stamp, newest_stamp_, time_jump_reset_)) {
+  if (const double back = newest_.jump_back(stamp, time_jump_reset_)) {
     map_->reset();
     ++time_jumps_;
     ROS_WARN("dynaorb_octomap: time went back %.3f s (cloud %.6f after %.6f: a bag played again, a simulator "
              "reset): map reset (%ld so far; ~time_jump_reset %.3g s)",
-             newest_stamp_ - stamp, stamp, newest_stamp_, time_jumps_, time_jump_reset_);
-    newest_stamp_ = stamp;
+             back, stamp, stamp + back, time_jumps_, time_jump_reset_);
   }
-  newest_stamp_ = std::max(newest_stamp_, stamp);
   Eigen::Isometry3d T_map_sensor;
   try {
     T_map_sensor = tf2::transformToEigen(

@@ -28,12 +28,12 @@
 #include <tf2_ros/message_filter.h>
 #include <tf2_ros/transform_listener.h>
 
-#include <limits>
 #include <memory>
 
 #include "dynaorb/ClearBBX.h"
 #include "dynaorb/MapFile.h"
 #include "dynaorb/occupancy/occupancy_map.h"
+#include "time_jump.h"
 
 namespace dynaorb::node {
 
@@ -62,7 +62,7 @@ class OctomapNode {
   ros::ServiceServer srv_reset_, srv_clear_, srv_save_;
   long tf_failures_ = 0;
   double time_jump_reset_ = 1.0;
-  double newest_stamp_ = -std::numeric_limits<double>::infinity();
+  NewestStamp newest_;  // of the clouds
   long time_jumps_ = 0;
 };
 

@@ -17,7 +17,6 @@
 #include "dynaorb/core/grey_image.h"
 #include "dynaorb/io/errors.h"
 #include "ros_conversions.h"
-#include "time_jump.h"
 
 namespace dynaorb::node {
 
@@ -239,14 +238,12 @@ void SlamNode::on_labels(const sensor_msgs::ImageConstPtr& msg) {
     }
   }
   const double stamp = msg->header.stamp.toSec();
-  if (time_went_back(stamp, newest_label_stamp_, cfg_.node.time_jump_reset)) {
+  if (const double back = newest_label_.jump_back(stamp, cfg_.node.time_jump_reset)) {
     // Labels of the time before would stand in the new time's way (the newest kept, the oldest dropped first).
     ROS_WARN("dynaorb_node: labels went back %.3f s (%.6f after %.6f): the labels of the time before are dropped",
-             newest_label_stamp_ - stamp, stamp, newest_label_stamp_);
+             back, stamp, stamp + back);
     forget_labels_after(stamp);
-    newest_label_stamp_ = stamp;
   }
-  newest_label_stamp_ = std::max(newest_label_stamp_, stamp);
   labels_[stamp] = labels;
   while (labels_.size() > 64) labels_.erase(labels_.begin());
   if (live_labels_) live_labels_->add_labels(stamp, labels);
@@ -277,8 +274,7 @@ void SlamNode::forget_labels_after(double stamp) {
   if (live_labels_) live_labels_->forget_after(stamp);
 }
 
-void SlamNode::restart_after_time_jump(double stamp) {
-  const double back = newest_frame_stamp_ - stamp;
+void SlamNode::restart_after_time_jump(double stamp, double back) {
   // Frames held for labels belong to the time before: answered as they would have been.
   while (!waiting_.empty()) {
     const FrameInput f = waiting_.front().first;
@@ -297,18 +293,14 @@ void SlamNode::restart_after_time_jump(double stamp) {
   ++counters_.time_jumps;
   ROS_WARN("dynaorb_node: time went back %.3f s (frame %.6f after %.6f: a bag played again, a simulator reset): "
            "map dropped, the frames from here start a new one (~time_jump_reset %.3g s)",
-           back, stamp, newest_frame_stamp_, cfg_.node.time_jump_reset);
+           back, stamp, stamp + back, cfg_.node.time_jump_reset);
 }
 
 void SlamNode::offer(FrameInput frame) {
   ++counters_.frames_in;
   const NodeOptions& n = cfg_.node;
   const double stamp = frame.header.stamp.toSec();
-  if (time_went_back(stamp, newest_frame_stamp_, n.time_jump_reset)) {
-    restart_after_time_jump(stamp);
-    newest_frame_stamp_ = stamp;
-  }
-  newest_frame_stamp_ = std::max(newest_frame_stamp_, stamp);
+  if (const double back = newest_frame_.jump_back(stamp, n.time_jump_reset)) restart_after_time_jump(stamp, back);
   if (!n.use_labels) {
     process(frame, cv::Mat(), -1.0);
     return;

@@ -34,7 +34,6 @@
 #include <tf2_ros/transform_listener.h>
 
 #include <atomic>
-#include <cmath>
 #include <deque>
 #include <map>
 #include <memory>
@@ -44,6 +43,7 @@
 #include "dynaorb/dynamic/label_propagation.h"
 #include "dynaorb/system.h"
 #include "node_config.h"
+#include "time_jump.h"
 #include "support/dense_cloud.h"
 #include "support/odom_chain.h"
 
@@ -94,9 +94,9 @@ class SlamNode {
 
   // Labels join: frames wait for theirs (~wait_for_labels) or take the newest.
   void offer(FrameInput frame);
-  // Time went back to `stamp`: the frames held for labels are answered,
-  // then the map is dropped as by ~reset; the next frame starts a new one.
-  void restart_after_time_jump(double stamp);
+  // Time went back to `stamp`, by `back` seconds: the frames held for labels
+  // are answered, then the map is dropped as by ~reset; the next frame starts a new one.
+  void restart_after_time_jump(double stamp, double back);
   // Drops the labels kept that are stamped after `stamp` (the time before a jump back:
   // labels come in stamp order, so none of the new time's is later than its newest frame or label).
   void forget_labels_after(double stamp);
@@ -158,7 +158,7 @@ class SlamNode {
   ros::Subscriber sub_mono_, sub_labels_, sub_info_left_, sub_info_right_;
   sensor_msgs::CameraInfoConstPtr info_left_, info_right_;
   std::map<double, cv::Mat> labels_;  // by stamp, newest kept
-  double newest_frame_stamp_ = -INFINITY, newest_label_stamp_ = -INFINITY;  // ~time_jump_reset
+  NewestStamp newest_frame_, newest_label_;  // ~time_jump_reset
   std::unique_ptr<dynamic::LiveLabels> live_labels_;  // live: which labels each frame gets
   // Frames waiting for labels: each for its own (~wait_for_labels), or live
   // all for the first labels (~first_labels_timeout).
