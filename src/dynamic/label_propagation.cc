@@ -264,6 +264,7 @@ void LiveLabels::clear() {
 }
 
 void LiveLabels::forget_after(double stamp) {
+  if (!std::isfinite(stamp)) throw InputError("label propagation: forget_after's stamp is not finite");
   labels_.erase(labels_.upper_bound(stamp), labels_.end());
   const size_t before = frames_.size();
   while (!frames_.empty() && frames_.back().stamp > stamp) frames_.pop_back();

@@ -280,3 +280,5 @@ def test_live_labels_forget_the_time_before(data):
             assert source == "fresh" and age == 0.0 and np.array_equal(got, labels)
         else:
             assert source == "stale" and got is None
+    with pytest.raises(ValueError, match="forget_after's stamp is not finite"):
+        live.forget_after(float("nan"))

@@ -229,6 +229,9 @@ TEST(LiveLabels, TimeGoingBackForgetsTheLabelsOfTheTimeBefore) {
     const FrameLabels next = live.labels_for(1.1, scene.grey(4, 148));
     EXPECT_EQ(next.source, FrameLabels::Source::kPropagated);
     EXPECT_GT(iou(next.labels, Scene::labels(148)), 0.8);
+    // A stamp that is no time: refused, nothing forgotten.
+    EXPECT_THROW(live.forget_after(std::numeric_limits<double>::quiet_NaN()), InputError);
+    EXPECT_EQ(live.labels_for(1.1, scene.grey(4, 148)).source, FrameLabels::Source::kPropagated);
   }
 }
 
