@@ -129,7 +129,7 @@ PYBIND11_MODULE(_core, m) {
       .def("save", &Settings::save, py::arg("path"))
       .def("validate", [](const Settings& s, const std::string& sensor) { s.validate(parse_sensor(sensor)); })
       .def("summary", &Settings::summary)
-      .def_readonly("source", &Settings::source)
+      .def_readwrite("source", &Settings::source)
       .def_property_readonly("fx", [](const Settings& s) { return s.camera.fx; })
       .def_property_readonly("fy", [](const Settings& s) { return s.camera.fy; })
       .def_property_readonly("cx", [](const Settings& s) { return s.camera.cx; })

@@ -284,19 +284,48 @@ def cmd_bag_from_dataset(args) -> int:
     return 0
 
 
-def cmd_bag_run(args) -> int:
-    from dynaorb.ros.bag import BagRunOptions, run_bag
-
+def _topics(args) -> dict | None:
     topics = {}
     for item in args.topic:
         role, sep, topic = item.partition("=")
         if not sep or not topic:
             raise ValueError(f"--topic {item!r}: expected ROLE=TOPIC")
         topics[role] = topic
-    stats = run_bag(BagRunOptions(bag=args.bag, config=args.config, sensor=args.sensor, topics=topics or None,
-                                  out=args.out, ground_truth=args.ground_truth, use_labels=not args.no_labels,
+    return topics or None
+
+
+def cmd_bag_run(args) -> int:
+    from dynaorb.ros.bag import BagRunOptions, run_bag
+
+    stats = run_bag(BagRunOptions(bag=args.bag, config=args.config, sensor=args.sensor, topics=_topics(args),
+                                  out=args.out, ground_truth=args.ground_truth,
+                                  ground_truth_topic=args.ground_truth_topic, use_labels=not args.no_labels,
                                   max_diff=args.max_diff, vocabulary=args.vocabulary, dynamic=args.dynamic,
                                   synchronous_mapping=not args.async_mapping, save_map=args.save_map,
                                   progress=not args.quiet))
     print(summary_line(args.out, stats))
+    return 0
+
+
+def cmd_bag_to_dataset(args) -> int:
+    from dynaorb.ros.bag import BagToDatasetOptions, bag_to_dataset
+
+    s = bag_to_dataset(BagToDatasetOptions(bag=args.bag, out=args.output, config=args.config, sensor=args.sensor,
+                                           topics=_topics(args), max_diff=args.max_diff,
+                                           ground_truth=args.ground_truth, ground_truth_topic=args.ground_truth_topic,
+                                           ground_truth_max_gap=args.ground_truth_max_gap,
+                                           use_labels=not args.no_labels, overwrite=args.overwrite,
+                                           progress=not args.quiet))
+    gt = s["ground_truth"]
+    extra = [f"{s['labels']} label images"] if s["labels"] else []
+    if s["unreadable"]:
+        extra.append(f"{s['unreadable']} unreadable frames skipped")
+    if gt["poses"]:
+        extra.append(f"ground truth {gt['poses']} poses"
+                     + (f" (KITTI poses for {gt['kitti_poses']} frames)" if "kitti_poses" in gt else ""))
+    if s["settings_from_camera_info"]:
+        extra.append("settings from the bag's camera_info")
+    print(f"{s['frames']} frames ({s['sensor']}) written to {s['files']['sequence']} in {s['layout'].upper()}'s "
+          f"layout" + "".join(f"; {e}" for e in extra))
+    print(f"run it: {s['run']}")
     return 0

@@ -8,6 +8,23 @@ import sys
 from dynaorb.cli import commands
 
 
+def _bag_input_args(p: argparse.ArgumentParser) -> None:
+    """What `bag run` and `bag to-dataset` read from a bag."""
+    p.add_argument("--config", help="ORB-SLAM2 settings YAML (default: BAG-stem.settings.yaml, else the "
+                                    "intrinsics of the bag's camera_info with ORB-SLAM2's extractor values)")
+    p.add_argument("--sensor", choices=["mono", "stereo", "rgbd"], help="default: the richest the topics allow")
+    p.add_argument("--topic", action="append", default=[], metavar="ROLE=TOPIC",
+                   help="topic of a role (image, right, depth, labels); default: TUM, KITTI-style stereo or "
+                        "EuRoC names found in the bag")
+    gt = p.add_mutually_exclusive_group()
+    gt.add_argument("--ground-truth", help="TUM file (default: BAG-stem.groundtruth.tum when present)")
+    gt.add_argument("--ground-truth-topic", metavar="TOPIC",
+                    help="ground truth from a pose topic of the bag (PoseStamped, PoseWithCovarianceStamped, "
+                         "TransformStamped or Odometry), taken as it is")
+    p.add_argument("--no-labels", action="store_true", help="ignore a labels topic in the bag")
+    p.add_argument("--max-diff", type=float, default=0.02, help="RGB-D colour/depth association [s]")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="dynaorb", description="Visual SLAM for dynamic scenes.")
     p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
@@ -234,15 +251,8 @@ def build_parser() -> argparse.ArgumentParser:
     bf.set_defaults(func=commands.cmd_bag_from_dataset)
     br = bsub.add_parser("run", help="run SLAM on a bag serially and repeatably (every frame, no wall clock)")
     br.add_argument("bag")
-    br.add_argument("--config", help="ORB-SLAM2 settings YAML (default: BAG-stem.settings.yaml)")
-    br.add_argument("--sensor", choices=["mono", "stereo", "rgbd"], help="default: the richest the topics allow")
-    br.add_argument("--topic", action="append", default=[], metavar="ROLE=TOPIC",
-                    help="topic of a role (image, right, depth, labels); default: TUM, KITTI-style stereo or "
-                         "EuRoC names found in the bag")
+    _bag_input_args(br)
     br.add_argument("--out", default="out/bag", help="output folder (default out/bag)")
-    br.add_argument("--ground-truth", help="TUM file (default: BAG-stem.groundtruth.tum when present)")
-    br.add_argument("--no-labels", action="store_true", help="ignore a labels topic in the bag")
-    br.add_argument("--max-diff", type=float, default=0.02, help="RGB-D colour/depth association [s]")
     br.add_argument("--vocabulary", default="default", metavar="FILE|default|none")
     br.add_argument("--dynamic", default="off", help="dynamic-object front-end preset (default off)")
     br.add_argument("--async-mapping", action="store_true",
@@ -250,6 +260,17 @@ def build_parser() -> argparse.ArgumentParser:
     br.add_argument("--save-map", metavar="OUT.map")
     br.add_argument("--quiet", action="store_true")
     br.set_defaults(func=commands.cmd_bag_run)
+    bt = bsub.add_parser("to-dataset", help="write a bag's frames as a dataset folder: RGB-D in TUM's layout, "
+                                            "stereo and mono in KITTI's, with settings and ground truth")
+    bt.add_argument("bag")
+    bt.add_argument("-o", "--output", required=True, metavar="DIR")
+    _bag_input_args(bt)
+    bt.add_argument("--ground-truth-max-gap", type=float, default=0.1, metavar="S",
+                    help="KITTI poses: ground truth interpolated at the frame stamps across gaps up to this "
+                         "(default 0.1 s)")
+    bt.add_argument("--overwrite", action="store_true", help="replace DIR when it is not empty")
+    bt.add_argument("--quiet", action="store_true")
+    bt.set_defaults(func=commands.cmd_bag_to_dataset)
 
     c = sub.add_parser("config", help="write the settings derived from a dataset's calibration")
     c.add_argument("kind", choices=["tum", "kitti", "euroc"])
@@ -266,7 +287,7 @@ def main(argv: list[str] | None = None) -> int:
                         format="%(levelname)s %(name)s: %(message)s")
     try:
         return args.func(args) or 0
-    except (ValueError, FileNotFoundError, ConnectionError) as exc:  # InputError is a ValueError
+    except (ValueError, FileNotFoundError, FileExistsError, ConnectionError) as exc:  # InputError is a ValueError
         print(f"dynaorb {args.command}: error: {exc}", file=sys.stderr)
         return 2
 

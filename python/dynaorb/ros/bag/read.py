@@ -8,6 +8,12 @@ messages later frames need. The provider has the interface of the C++
 DataProvider the runner uses (len, load, stamp, default_settings,
 ground_truth, sensor, warnings), so `dynaorb bag run` goes through the same
 runner and core as `dynaorb run`.
+
+Settings: a settings YAML given, or BAG-stem.settings.yaml beside the bag, or,
+for a bag recorded on a robot with neither, the camera's own CameraInfo
+topics (the image topic's sibling camera_info; dynaorb.ros.bag.camera_info).
+Ground truth: a TUM file given, or BAG-stem.groundtruth.tum, or a stamped
+pose topic in the bag (ground_truth_topic; dynaorb.ros.bag.poses).
 """
 from __future__ import annotations
 
@@ -15,12 +21,15 @@ import bisect
 import collections
 import dataclasses
 import pathlib
+import tempfile
 
 import numpy as np
 from rosbags.rosbag1 import Reader
 
 from dynaorb import core
+from dynaorb.ros.bag import camera_info as ci
 from dynaorb.ros.bag import messages as m
+from dynaorb.ros.bag.poses import read_pose_topic
 from dynaorb.ros.bag.write import sidecar
 
 ROLES = ("image", "right", "depth", "labels")
@@ -48,21 +57,26 @@ class BagProvider:
 
     def __init__(self, path: str | pathlib.Path, *, settings=None, sensor: str | None = None,
                  topics: dict | None = None, max_diff: float = 0.02, ground_truth: str | None = None,
-                 use_labels: bool = True):
-        """settings: a Settings object or YAML path (default: BAG-stem.settings.yaml);
-        topics: role -> topic overrides (image, right, depth, labels);
-        ground_truth: a TUM file (default: BAG-stem.groundtruth.tum when present)."""
+                 use_labels: bool = True, ground_truth_topic: str | None = None):
+        """settings: a Settings object or YAML path (default: BAG-stem.settings.yaml,
+        else the bag's camera_info); topics: role -> topic overrides (image, right,
+        depth, labels); ground_truth: a TUM file (default: BAG-stem.groundtruth.tum
+        when present); ground_truth_topic: a stamped pose topic of the bag instead."""
         _core = core()
         self.path = pathlib.Path(path)
         if not self.path.is_file():
             raise FileNotFoundError(f"{self.path}: bag does not exist")
         self.warnings: list[str] = []
-        self._settings = self._load_settings(settings)
+        with Reader(self.path) as reader:
+            available = {c.topic: c.msgtype for c in reader.connections}
+        if ground_truth and ground_truth_topic:
+            raise ValueError("give the ground truth as a file or as a topic, not both")
+        self._settings = self._load_settings(settings, available)
+        self.settings_from_camera_info = self._settings is None
         self._ground_truth_file = pathlib.Path(ground_truth) if ground_truth else sidecar(self.path, "groundtruth.tum")
         if ground_truth and not self._ground_truth_file.is_file():
             raise FileNotFoundError(f"{ground_truth}: ground truth file does not exist")
-        with Reader(self.path) as reader:
-            available = {c.topic: c.msgtype for c in reader.connections}
+        self._ground_truth_topic = read_pose_topic(self.path, ground_truth_topic) if ground_truth_topic else None
         self.topics = self._choose_topics(available, topics or {}, sensor, use_labels)
         self.sensor = sensor or ("rgbd" if self.topics.get("depth") else "stereo" if self.topics.get("right")
                                  else "mono")
@@ -77,20 +91,72 @@ class BagProvider:
                 self.topics.pop(role, None)
         self.max_diff = max_diff
         self._index()
+        if self._settings is None:
+            self._settings = self._settings_from_camera_info(available)
         self._reader = None
         self._messages = None
         self._next = 0
 
     # ------------------------------------------------------------- set-up
-    def _load_settings(self, settings):
+    def _load_settings(self, settings, available: dict):
+        """The settings given or beside the bag; None when they are to come from
+        the bag's camera_info (read once the topics are chosen)."""
         _core = core()
         if settings is None:
             default = sidecar(self.path, "settings.yaml")
             if not default.is_file():
-                raise ValueError(f"{self.path}: no settings (give --config, or keep {default.name} beside the bag)")
+                if m.CAMERA_INFO in available.values():
+                    return None
+                raise ValueError(f"{self.path}: no settings (give --config, or keep {default.name} beside the bag; "
+                                 f"the bag has no {m.CAMERA_INFO} topic to take the camera from)")
             settings = str(default)
         if isinstance(settings, (str, pathlib.Path)):
             return _core.Settings.load(str(settings))
+        return settings
+
+    def camera_info_topic(self, role: str) -> str:
+        """The CameraInfo topic beside an image topic (image_transport's rule:
+        the image topic's namespace + camera_info)."""
+        return self.topics[role].rsplit("/", 1)[0] + "/camera_info"
+
+    def _first_message(self, topic: str, msgtype: str):
+        with Reader(self.path) as reader:
+            conns = [c for c in reader.connections if c.topic == topic and c.msgtype == msgtype]
+            for conn, _, raw in reader.messages(connections=conns):
+                return m.deserialize(raw, conn.msgtype)
+        return None
+
+    def _settings_from_camera_info(self, available: dict):
+        _core = core()
+        infos = {}
+        for role in ("image", "right") if self.sensor == "stereo" else ("image",):
+            topic = self.camera_info_topic(role)
+            if available.get(topic) != m.CAMERA_INFO:
+                raise ValueError(f"{self.path}: no settings (give --config, or keep "
+                                 f"{sidecar(self.path, 'settings.yaml').name} beside the bag), and no "
+                                 f"{m.CAMERA_INFO} on {topic} beside {self.topics[role]} to take the camera from")
+            infos[role] = self._first_message(topic, m.CAMERA_INFO)
+        first = self._first_message(self.topics["image"], m.IMAGE)
+        depth = self._first_message(self.topics["depth"], m.IMAGE) if self.sensor == "rgbd" else None
+        stamps = np.array([s for s, _ in self._frames])
+        gaps = np.diff(stamps)
+        fps = 1.0 / float(np.median(gaps)) if len(gaps) and np.median(gaps) > 0 else 30.0
+        try:
+            text = ci.settings_yaml(self.sensor, infos["image"], infos.get("right"), fps=round(fps, 3),
+                                    depth_encoding=depth.encoding if depth is not None else None,
+                                    rgb=first.encoding not in ("bgr8", "bgra8"))
+        except ValueError as exc:
+            raise ValueError(f"{self.path}: {exc}") from None
+        self.settings_yaml = text
+        with tempfile.TemporaryDirectory() as tmp:
+            path = pathlib.Path(tmp) / f"{self.path.stem}.camera_info.yaml"
+            path.write_text(text)
+            settings = _core.Settings.load(str(path))
+        topics = ", ".join(self.camera_info_topic(r) for r in infos)
+        settings.source = f"{self.path} camera_info ({topics})"
+        settings.validate(self.sensor)
+        self.warnings.append(f"settings from the bag's camera_info ({topics}) and ORB-SLAM2's extractor values; "
+                             f"give --config to choose them")
         return settings
 
     def _choose_topics(self, available: dict, overrides: dict, sensor: str | None, use_labels: bool) -> dict:
@@ -193,6 +259,8 @@ class BagProvider:
         return self._settings
 
     def ground_truth(self):
+        if self._ground_truth_topic is not None:
+            return self._ground_truth_topic
         if not self._ground_truth_file.is_file():
             return np.zeros(0), np.zeros((0, 4, 4))
         return core().read_tum(str(self._ground_truth_file))
@@ -200,6 +268,12 @@ class BagProvider:
     def load(self, i: int) -> BagFrame:
         """Frame i. Serial: loading frames in order reads the bag once; going
         back starts the pass again. InputError for a message it cannot read."""
+        stamp, msgs = self.load_messages(i)
+        return self._convert(i, stamp, msgs)
+
+    def load_messages(self, i: int) -> tuple[float, dict]:
+        """Frame i's stamp and its messages as the bag holds them (role ->
+        sensor_msgs/Image), serially as load(); for writing them elsewhere."""
         _core = core()
         if i < 0 or i >= len(self._frames):
             raise IndexError(i)
@@ -219,7 +293,7 @@ class BagProvider:
         self._next = i + 1
         if len(self._buffer) > 64:  # messages of frames already passed are never needed again
             self._buffer = {k: v for k, v in self._buffer.items() if self._wanted.get(k, -1) > i}
-        return self._convert(i, stamp, msgs)
+        return stamp, msgs
 
     def _restart(self) -> None:
         self.close()

@@ -24,6 +24,7 @@ class BagRunOptions:
     topics: dict | None = None         # role -> topic (image, right, depth, labels)
     out: str = "out/bag"
     ground_truth: str | None = None    # TUM file (default: BAG-stem.groundtruth.tum)
+    ground_truth_topic: str | None = None  # or a stamped pose topic of the bag
     use_labels: bool = True            # a labels topic masks the movable classes
     max_diff: float = 0.02             # s: RGB-D colour/depth association
     vocabulary: object = "default"
@@ -36,7 +37,8 @@ class BagRunOptions:
 def run_bag(opts: BagRunOptions) -> dict:
     """Runs the bag; returns the stats also written to OUT/stats.json."""
     provider = BagProvider(opts.bag, settings=opts.config, sensor=opts.sensor, topics=opts.topics,
-                           max_diff=opts.max_diff, ground_truth=opts.ground_truth, use_labels=opts.use_labels)
+                           max_diff=opts.max_diff, ground_truth=opts.ground_truth, use_labels=opts.use_labels,
+                           ground_truth_topic=opts.ground_truth_topic)
     try:
         stats = run_dataset(RunOptions(kind="bag", path=str(opts.bag), sensor=provider.sensor, out=opts.out,
                                        dynamic=opts.dynamic, vocabulary=opts.vocabulary, progress=opts.progress,
@@ -45,5 +47,9 @@ def run_bag(opts: BagRunOptions) -> dict:
     finally:
         provider.close()
     stats["bag"] = {"topics": provider.topics, "frames": len(provider)}
+    if provider.settings_from_camera_info:
+        # The settings the run used, for a rerun with --config.
+        (pathlib.Path(opts.out) / "settings.camera_info.yaml").write_text(provider.settings_yaml)
+        stats["bag"]["settings_from_camera_info"] = str(pathlib.Path(opts.out) / "settings.camera_info.yaml")
     (pathlib.Path(opts.out) / "stats.json").write_text(json.dumps(stats, indent=2))
     return stats

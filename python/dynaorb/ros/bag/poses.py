@@ -1,0 +1,84 @@
+"""Poses in a bag (a motion-capture or reference topic) as a trajectory, and a
+trajectory sampled at other stamps.
+
+The topic's poses are taken as they are, stamped with their headers: a
+motion-capture system's body or marker pose, not necessarily the camera's
+(an SE3-aligned ATE against the camera's trajectory then includes the lever
+arm between the two).
+"""
+from __future__ import annotations
+
+import pathlib
+
+import numpy as np
+from rosbags.rosbag1 import Reader
+from scipy.spatial.transform import Rotation, Slerp
+
+from dynaorb.ros.bag import messages as m
+
+POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PoseWithCovarianceStamped",
+              "geometry_msgs/msg/TransformStamped", "nav_msgs/msg/Odometry")
+
+
+def _position_orientation(msg, msgtype: str):
+    if msgtype == "geometry_msgs/msg/TransformStamped":
+        return msg.transform.translation, msg.transform.rotation
+    pose = msg.pose if msgtype == "geometry_msgs/msg/PoseStamped" else msg.pose.pose
+    return pose.position, pose.orientation
+
+
+def read_pose_topic(bag: str | pathlib.Path, topic: str) -> tuple[np.ndarray, np.ndarray]:
+    """(stamps [s], 4x4 poses) of `topic`, in header-stamp order; repeated
+    stamps keep the first. ValueError for a topic that is not in the bag, of a
+    type that is not a stamped pose, or with a quaternion that is not one."""
+    with Reader(bag) as reader:
+        conns = [c for c in reader.connections if c.topic == topic]
+        if not conns:
+            raise ValueError(f"{bag}: topic {topic} is not in the bag (topics: "
+                             f"{', '.join(sorted({c.topic for c in reader.connections}))})")
+        msgtype = conns[0].msgtype
+        if msgtype not in POSE_TYPES:
+            raise ValueError(f"{bag}: topic {topic} carries {msgtype}, not a stamped pose "
+                             f"({', '.join(POSE_TYPES)})")
+        rows = {}
+        for conn, _, raw in reader.messages(connections=conns):
+            msg = m.deserialize(raw, conn.msgtype)
+            stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+            p, q = _position_orientation(msg, conn.msgtype)
+            rows.setdefault(m.stamp_ns(stamp), (stamp, [p.x, p.y, p.z], [q.x, q.y, q.z, q.w]))
+    ordered = [rows[k] for k in sorted(rows)]
+    stamps = np.array([r[0] for r in ordered], dtype=float)
+    poses = np.tile(np.eye(4), (len(ordered), 1, 1))
+    for k, (_, t, q) in enumerate(ordered):
+        norm = float(np.linalg.norm(q))
+        if not (np.isfinite(norm) and abs(norm - 1.0) < 1e-3):
+            raise ValueError(f"{bag}: {topic} at {ordered[k][0]:.6f}: orientation {q} is not a unit quaternion")
+        poses[k, :3, :3] = Rotation.from_quat(np.asarray(q) / norm).as_matrix()
+        poses[k, :3, 3] = t
+    return stamps, poses
+
+
+def sample(stamps: np.ndarray, poses: np.ndarray, at: np.ndarray, max_gap: float) -> np.ndarray:
+    """The trajectory at the stamps `at` (N x 4 x 4), NaN where it has none:
+    a stamp within 1 us of a pose takes it; one between two poses at most
+    max_gap s apart is interpolated (position linearly, rotation by slerp);
+    anything else (outside the trajectory, or in a longer gap) has none."""
+    out = np.full((len(at), 4, 4), np.nan)
+    if len(stamps) == 0:
+        return out
+    stamps = np.asarray(stamps, float)
+    rot = Rotation.from_matrix(poses[:, :3, :3])
+    for k, t in enumerate(np.asarray(at, float)):
+        j = int(np.searchsorted(stamps, t))
+        for near in (j - 1, j):
+            if 0 <= near < len(stamps) and abs(stamps[near] - t) <= 1e-6:
+                out[k] = poses[near]
+                break
+        else:
+            if 0 < j < len(stamps) and stamps[j] - stamps[j - 1] <= max_gap:
+                a, b = stamps[j - 1], stamps[j]
+                w = (t - a) / (b - a)
+                out[k] = np.eye(4)
+                out[k, :3, :3] = Slerp([a, b], rot[[j - 1, j]])([t]).as_matrix()[0]
+                out[k, :3, 3] = (1 - w) * poses[j - 1, :3, 3] + w * poses[j, :3, 3]
+    return out

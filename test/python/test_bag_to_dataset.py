@@ -1,0 +1,267 @@
+"""dynaorb bag to-dataset: bags written back as TUM / KITTI folders; settings from
+a bag's camera_info; ground truth from a pose topic."""
+from __future__ import annotations
+
+import pathlib
+import shutil
+
+import cv2
+import numpy as np
+import pytest
+from rosbags.rosbag1 import Writer
+from scipy.spatial.transform import Rotation
+
+from dynaorb import core
+from dynaorb.cli.main import main
+from dynaorb.ros.bag import (BagProvider, BagRunOptions, BagToDatasetOptions, BagWriteOptions, bag_to_dataset,
+                             run_bag, write_dataset_bag)
+from dynaorb.ros.bag import messages as m
+from dynaorb.ros.bag.poses import read_pose_topic, sample
+from dynaorb.runner import RunOptions, run_dataset
+
+
+def frames(provider) -> list:
+    return [provider.load(i) for i in range(len(provider))]
+
+
+def tum_rows(path) -> np.ndarray:
+    return np.loadtxt(path, comments="#", ndmin=2)
+
+
+def without_sidecars(bag: pathlib.Path, tmp_path: pathlib.Path) -> pathlib.Path:
+    """A copy of the bag with nothing beside it (a bag as a robot records it)."""
+    bare = tmp_path / "bare" / bag.name
+    bare.parent.mkdir()
+    shutil.copy(bag, bare)
+    return bare
+
+
+# ------------------------------------------------------------------ round trips
+def test_rgbd_bag_back_to_tum_gives_the_same_frames_and_run(tmp_path, synth_rgbd):
+    bag = tmp_path / "rgbd.bag"  # 32FC1 metres, as TUM's own bags
+    write_dataset_bag(BagWriteOptions(kind="tum", path=str(synth_rgbd), out=str(bag), labels=str(synth_rgbd / "labels")))
+    summary = bag_to_dataset(BagToDatasetOptions(bag=str(bag), out=str(tmp_path / "tum")))
+    assert summary["layout"] == "tum" and summary["frames"] == 8 and summary["labels"] == 8
+    assert summary["run"] == f"dynaorb run tum {tmp_path / 'tum'} --labels {tmp_path / 'tum' / 'labels'}"
+    original, back = core().open_dataset("tum", str(synth_rgbd)), core().open_dataset("tum", str(tmp_path / "tum"))
+    assert len(back) == len(original)
+    for a, b in zip(frames(original), frames(back)):
+        assert b.stamp == pytest.approx(a.stamp, abs=1e-6)
+        np.testing.assert_array_equal(b.image, a.image)
+        np.testing.assert_array_equal(b.depth, a.depth)  # metres x DepthMapFactor back to the PNG units
+        labels_a = cv2.imread(str(synth_rgbd / "labels" / pathlib.Path(a.image_path).name), cv2.IMREAD_UNCHANGED)
+        labels_b = cv2.imread(str(tmp_path / "tum" / "labels" / pathlib.Path(b.image_path).name), cv2.IMREAD_UNCHANGED)
+        np.testing.assert_array_equal(labels_b, labels_a)
+    np.testing.assert_allclose(tum_rows(tmp_path / "tum" / "groundtruth.txt"), tum_rows(synth_rgbd / "groundtruth.txt"),
+                               atol=1e-6)
+    runs = [run_dataset(RunOptions(kind="tum", path=str(p), out=str(tmp_path / name), vocabulary="none",
+                                   progress=False)) for p, name in ((synth_rgbd, "a"), (tmp_path / "tum", "b"))]
+    assert runs[1]["tracked_frames"] == runs[0]["tracked_frames"] == 8
+    np.testing.assert_allclose(tum_rows(tmp_path / "b" / "trajectory.tum"), tum_rows(tmp_path / "a" / "trajectory.tum"),
+                               atol=1e-9)
+
+
+def test_stereo_bag_back_to_kitti_with_calibration_and_poses(tmp_path, synth_stereo):
+    seq = synth_stereo / "sequences" / "00"
+    bag = tmp_path / "stereo.bag"
+    write_dataset_bag(BagWriteOptions(kind="kitti", path=str(seq), out=str(bag)))  # stamps + 1 s
+    summary = bag_to_dataset(BagToDatasetOptions(bag=str(bag), out=str(tmp_path / "kitti")))
+    assert summary["layout"] == "kitti" and summary["sensor"] == "stereo" and summary["frames"] == 6
+    assert summary["ground_truth"] == {"poses": 6, "frames_covered": 6, "kitti_poses": 6}
+    back_seq = tmp_path / "kitti" / "sequences" / "00"
+    original, back = core().open_dataset("kitti", str(seq)), core().open_dataset("kitti", str(back_seq))
+    for a, b in zip(frames(original), frames(back)):
+        assert b.stamp == pytest.approx(a.stamp + 1.0, abs=1e-6)
+        np.testing.assert_array_equal(b.image, a.image)
+        np.testing.assert_array_equal(b.right, a.right)
+    sa, sb = original.default_settings(), back.default_settings()
+    assert (sb.fx, sb.fy, sb.cx, sb.cy, sb.bf) == (sa.fx, sa.fy, sa.cx, sa.cy, sa.bf)
+    calib = {line.split(":")[0]: np.array(line.split()[1:], float)
+             for line in (back_seq / "calib.txt").read_text().splitlines()}
+    np.testing.assert_allclose(calib["P1"][3], -sa.bf)
+    ga, gb = original.ground_truth(), back.ground_truth()
+    np.testing.assert_allclose(gb[1], ga[1], atol=1e-6)  # the synthetic poses are relative to frame 0 already
+
+
+# ------------------------------------------------------------------ camera_info
+@pytest.mark.parametrize("fixture,kind,depth", [("synth_stereo", "kitti", None), ("synth_rgbd", "tum", "32FC1"),
+                                                ("synth_rgbd", "tum", "16UC1")])
+def test_settings_from_the_bags_camera_info(tmp_path, request, fixture, kind, depth):
+    seq = request.getfixturevalue(fixture)
+    path = seq if kind == "tum" else seq / "sequences" / "00"
+    bag = tmp_path / "seq.bag"
+    write_dataset_bag(BagWriteOptions(kind=kind, path=str(path), out=str(bag), depth_encoding=depth or "32FC1"))
+    bare = without_sidecars(bag, tmp_path)
+    provider = BagProvider(bare)
+    assert provider.settings_from_camera_info
+    s, ref = provider.default_settings(), core().open_dataset(kind, str(path)).default_settings()
+    assert (s.fx, s.fy, s.cx, s.cy, s.width, s.height) == (ref.fx, ref.fy, ref.cx, ref.cy, ref.width, ref.height)
+    assert s.n_features == 1000 and "camera_info" in s.source
+    assert s.fps == pytest.approx(ref.fps, rel=1e-3)
+    if kind == "kitti":
+        assert s.bf == pytest.approx(ref.bf) and s.th_depth == 35.0
+    else:  # REP-118: 16UC1 in millimetres; 32FC1 metres, written at TUM's 5000 per metre
+        assert s.depth_map_factor == {"32FC1": 5000.0, "16UC1": 1000.0}[depth]
+        assert s.bf == pytest.approx(ref.fx * 0.08) and s.th_depth == 40.0
+    provider.close()
+    if depth != "16UC1":  # the synthetic PNG units are not millimetres: that bag needs its settings
+        stats = run_bag(BagRunOptions(bag=str(bare), out=str(tmp_path / "run"), vocabulary="none", progress=False))
+        assert stats["tracked_frames"] == stats["frames"] > 0
+        assert (tmp_path / "run" / "settings.camera_info.yaml").is_file()
+
+
+def test_camera_info_it_cannot_use_is_named(tmp_path):
+    bag = tmp_path / "fisheye.bag"
+    with Writer(bag) as w:
+        img = w.add_connection("/cam/image_raw", m.IMAGE, typestore=m.TYPESTORE)
+        info = w.add_connection("/cam/camera_info", m.CAMERA_INFO, typestore=m.TYPESTORE)
+        for k in range(3):
+            t = 5.0 + 0.1 * k
+            w.write(img, m.stamp_ns(t), m.serialize(m.image_msg(np.zeros((48, 64), np.uint8), "mono8", t, "cam")))
+            msg = m.camera_info_msg(t, "cam", 64, 48, np.diag([50.0, 50.0, 1.0]), np.zeros(4),
+                                    np.hstack([np.diag([50.0, 50.0, 1.0]), np.zeros((3, 1))]))
+            msg = type(msg)(**{**{f: getattr(msg, f) for f in msg.__dataclass_fields__},
+                               "distortion_model": "equidistant"})
+            w.write(info, m.stamp_ns(t), m.serialize(msg))
+    with pytest.raises(ValueError, match="equidistant"):
+        BagProvider(bag, topics={"image": "/cam/image_raw"})
+
+
+# ------------------------------------------------------------------ ground truth from a topic
+POSE_RATE, FRAME_RATE = 100.0, 10.0
+
+
+def body_pose(t: float) -> np.ndarray:
+    """A known motion: 0.5 m/s along x and 20 deg/s about z."""
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_euler("z", 20.0 * t, degrees=True).as_matrix()
+    T[:3, 3] = [0.5 * t, 0.1, 1.0]
+    return T
+
+
+def pose_message(msgtype: str, t: float):
+    types = m.TYPESTORE.types
+    T = body_pose(t)
+    q = Rotation.from_matrix(T[:3, :3]).as_quat()
+    point = types["geometry_msgs/msg/Point"](x=T[0, 3], y=T[1, 3], z=T[2, 3])
+    quat = types["geometry_msgs/msg/Quaternion"](x=q[0], y=q[1], z=q[2], w=q[3])
+    pose = types["geometry_msgs/msg/Pose"](position=point, orientation=quat)
+    header = m.header(t, "world")
+    if msgtype == "geometry_msgs/msg/PoseStamped":
+        return types[msgtype](header=header, pose=pose)
+    if msgtype == "geometry_msgs/msg/TransformStamped":
+        v = types["geometry_msgs/msg/Vector3"](x=T[0, 3], y=T[1, 3], z=T[2, 3])
+        return types[msgtype](header=header, child_frame_id="body",
+                              transform=types["geometry_msgs/msg/Transform"](translation=v, rotation=quat))
+    with_cov = types["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36))
+    if msgtype == "nav_msgs/msg/Odometry":
+        twist = types["geometry_msgs/msg/TwistWithCovariance"](
+            twist=types["geometry_msgs/msg/Twist"](linear=types["geometry_msgs/msg/Vector3"](x=0, y=0, z=0),
+                                                   angular=types["geometry_msgs/msg/Vector3"](x=0, y=0, z=0)),
+            covariance=np.zeros(36))
+        return types[msgtype](header=header, child_frame_id="body", pose=with_cov, twist=twist)
+    return types[msgtype](header=header, pose=with_cov)
+
+
+def mono_bag_with_poses(path: pathlib.Path, msgtype: str, first_pose: float = 0.0) -> np.ndarray:
+    """10 grey frames at 10 Hz from t = 100.003 s (between pose samples), camera_info,
+    and poses at 100 Hz on /mocap/pose from 100 + first_pose s; returns the frame stamps."""
+    stamps = 100.003 + np.arange(10) / FRAME_RATE
+    rng = np.random.default_rng(0)
+    K = np.array([[80.0, 0, 63.5], [0, 80.0, 47.5], [0, 0, 1]])
+    with Writer(path) as w:
+        img = w.add_connection("/camera/image_raw", m.IMAGE, typestore=m.TYPESTORE)
+        info = w.add_connection("/camera/camera_info", m.CAMERA_INFO, typestore=m.TYPESTORE)
+        pose = w.add_connection("/mocap/pose", msgtype, typestore=m.TYPESTORE)
+        for k, t in enumerate(stamps):
+            image = rng.integers(0, 255, (96, 128), dtype=np.uint8)
+            w.write(img, m.stamp_ns(t), m.serialize(m.image_msg(image, "mono8", t, "cam", k)))
+            w.write(info, m.stamp_ns(t), m.serialize(m.camera_info_msg(t, "cam", 128, 96, K, np.zeros(5),
+                                                                          np.hstack([K, np.zeros((3, 1))]))))
+        for t in 100.0 + first_pose + np.arange(int(1.2 * POSE_RATE)) / POSE_RATE:
+            w.write(pose, m.stamp_ns(t), m.serialize(pose_message(msgtype, t)))
+    return stamps
+
+
+@pytest.mark.parametrize("msgtype", ["geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/TransformStamped",
+                                     "nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseWithCovarianceStamped"])
+def test_ground_truth_from_a_pose_topic(tmp_path, msgtype):
+    bag = tmp_path / "robot.bag"
+    stamps = mono_bag_with_poses(bag, msgtype)
+    gt_stamps, gt_poses = read_pose_topic(bag, "/mocap/pose")
+    assert len(gt_stamps) == 120
+    np.testing.assert_allclose(gt_poses[37], body_pose(gt_stamps[37]), atol=1e-9)
+    summary = bag_to_dataset(BagToDatasetOptions(bag=str(bag), out=str(tmp_path / "ds"),
+                                                 topics={"image": "/camera/image_raw"},
+                                                 ground_truth_topic="/mocap/pose"))
+    assert summary["sensor"] == "mono" and summary["settings_from_camera_info"]
+    assert summary["run"].endswith("--sensor mono")
+    assert summary["ground_truth"] == {"poses": 120, "frames_covered": 10, "kitti_poses": 10}
+    seq = tmp_path / "ds" / "sequences" / "00"
+    back = core().open_dataset("kitti", str(seq), "mono")
+    assert len(back) == 10 and [back.stamp(i) for i in range(10)] == pytest.approx(stamps, abs=1e-6)
+    # KITTI poses: the body at each frame stamp (interpolated between the 100 Hz
+    # samples: linear in position, slerp at a constant rate) in the first frame's.
+    _, poses = back.ground_truth()
+    first_inv = np.linalg.inv(body_pose(stamps[0]))
+    for k, t in enumerate(stamps):
+        np.testing.assert_allclose(poses[k], first_inv @ body_pose(t), atol=1e-6)
+    np.testing.assert_allclose(tum_rows(seq / "groundtruth.tum")[:, 0], gt_stamps, atol=1e-6)
+
+
+def test_ground_truth_that_starts_late_gives_no_kitti_poses(tmp_path):
+    bag = tmp_path / "late.bag"
+    mono_bag_with_poses(bag, "geometry_msgs/msg/PoseStamped", first_pose=0.25)
+    summary = bag_to_dataset(BagToDatasetOptions(bag=str(bag), out=str(tmp_path / "ds"),
+                                                 topics={"image": "/camera/image_raw"},
+                                                 ground_truth_topic="/mocap/pose"))
+    assert summary["ground_truth"]["kitti_poses"] == 0 and summary["ground_truth"]["frames_covered"] == 7
+    assert not (tmp_path / "ds" / "poses").exists()
+    assert (tmp_path / "ds" / "sequences" / "00" / "groundtruth.tum").is_file()
+
+
+def test_sampling_a_trajectory():
+    stamps = np.array([0.0, 0.1, 0.2, 0.5])
+    poses = np.stack([body_pose(t) for t in stamps])
+    at = sample(stamps, poses, np.array([0.1, 0.15, 0.3, -0.1, 0.6]), max_gap=0.15)
+    np.testing.assert_allclose(at[0], poses[1])
+    np.testing.assert_allclose(at[1], body_pose(0.15), atol=1e-12)
+    assert np.isnan(at[2:]).all()  # in a 0.3 s gap; before; after
+
+
+# ------------------------------------------------------------------ bad input and the command line
+def test_to_dataset_errors_are_named(tmp_path, synth_stereo):
+    bag = tmp_path / "s.bag"
+    write_dataset_bag(BagWriteOptions(kind="kitti", path=str(synth_stereo / "sequences" / "00"), out=str(bag)))
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "x").write_text("")
+    with pytest.raises(FileExistsError, match="not empty"):
+        bag_to_dataset(BagToDatasetOptions(bag=str(bag), out=str(tmp_path / "full")))
+    with pytest.raises(ValueError, match="not both"):
+        BagProvider(bag, ground_truth=str(tmp_path / "s.groundtruth.tum"), ground_truth_topic="/x")
+    with pytest.raises(ValueError, match="is not in the bag"):
+        BagProvider(bag, ground_truth_topic="/mocap/pose")
+    with pytest.raises(ValueError, match="not a stamped pose"):
+        BagProvider(bag, ground_truth_topic="/camera/left/image_rect")
+    bare = without_sidecars(bag, tmp_path)
+    with Writer(tmp_path / "no_info.bag") as w:
+        c = w.add_connection("/camera/left/image_rect", m.IMAGE, typestore=m.TYPESTORE)
+        w.write(c, m.stamp_ns(1.0), m.serialize(m.image_msg(np.zeros((8, 8), np.uint8), "mono8", 1.0, "cam")))
+    with pytest.raises(ValueError, match="no settings.*CameraInfo"):
+        BagProvider(tmp_path / "no_info.bag")
+    assert BagProvider(bare).settings_from_camera_info
+
+
+def test_cli_to_dataset(tmp_path, synth_stereo, capsys):
+    bag = tmp_path / "s.bag"
+    write_dataset_bag(BagWriteOptions(kind="kitti", path=str(synth_stereo / "sequences" / "00"), out=str(bag)))
+    out = tmp_path / "ds"
+    assert main(["bag", "to-dataset", str(bag), "-o", str(out), "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert "6 frames (stereo)" in printed and f"run it: dynaorb run kitti {out / 'sequences' / '00'}" in printed
+    assert main(["bag", "to-dataset", str(bag), "-o", str(out), "--quiet"]) == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert main(["bag", "to-dataset", str(bag), "-o", str(out), "--quiet", "--overwrite"]) == 0
+    assert main(["run", "kitti", str(out / "sequences" / "00"), "--out", str(tmp_path / "run"),
+                 "--vocabulary", "none", "--quiet"]) == 0
+    assert "6/6 frames tracked" in capsys.readouterr().out
