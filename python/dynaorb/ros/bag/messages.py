@@ -16,7 +16,11 @@ from rosbags.typesys import Stores, get_typestore
 
 TYPESTORE = get_typestore(Stores.ROS1_NOETIC)
 IMAGE = "sensor_msgs/msg/Image"
+COMPRESSED_IMAGE = "sensor_msgs/msg/CompressedImage"
+IMAGE_TYPES = (IMAGE, COMPRESSED_IMAGE)
 CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
+# image_transport's topic names for the compressed transports of an image topic.
+COMPRESSED_SUFFIXES = ("/compressed", "/compressedDepth")
 
 _Header = TYPESTORE.types["std_msgs/msg/Header"]
 _Time = TYPESTORE.types["builtin_interfaces/msg/Time"]
@@ -145,3 +149,64 @@ def depth_in_metres(msg, depth_map_factor: float) -> np.ndarray:
     if msg.encoding in ("16UC1", "mono16"):
         return a.astype(np.float32) / np.float32(depth_map_factor)
     raise ValueError(f"depth encoding {msg.encoding!r} is neither 16UC1 nor 32FC1")
+
+
+def base_topic(topic: str) -> str:
+    """The image topic a compressed transport's topic belongs to (.../image/compressed -> .../image)."""
+    for suffix in COMPRESSED_SUFFIXES:
+        if topic.endswith(suffix):
+            return topic[:-len(suffix)]
+    return topic
+
+
+def _compressed_depth(msg, encoding: str) -> tuple[np.ndarray, str]:
+    """compressed_depth_image_transport's format: a 12-byte ConfigHeader (int32
+    compression format, float32 depthQuantA, depthQuantB), then a 16-bit PNG:
+    16UC1 as it was; 32FC1 as quantised inverse depth, depth = A / (q - B),
+    q = 0 for no depth (NaN)."""
+    if "rvl" in msg.format.lower():
+        raise ValueError(f"compressedDepth format {msg.format!r}: only its png compression is read, not rvl")
+    data = bytes(msg.data)
+    if len(data) <= 12:
+        raise ValueError(f"compressedDepth image of {len(data)} bytes has no image after its 12-byte header")
+    q = cv2.imdecode(np.frombuffer(data[12:], np.uint8), cv2.IMREAD_UNCHANGED)
+    if q is None or q.dtype != np.uint16 or q.ndim != 2:
+        raise ValueError(f"compressedDepth image ({msg.format!r}) does not decode to a 16-bit PNG")
+    if encoding in ("16UC1", "mono16"):
+        return q, "16UC1"
+    if encoding != "32FC1":
+        raise ValueError(f"compressedDepth encoding {encoding!r} is neither 16UC1 nor 32FC1")
+    _, a, b = struct.unpack_from("<iff", data, 0)
+    depth = np.full(q.shape, np.nan, np.float32)
+    valid = q > 0
+    depth[valid] = np.float32(a) / (q[valid].astype(np.float32) - np.float32(b))
+    return depth, "32FC1"
+
+
+def decompress(msg):
+    """A sensor_msgs/CompressedImage as the Image message it was made from
+    (image_transport's compressed transport: jpeg / png, colour as bgr8 or
+    bgra8, grey as mono8 / mono16; compressedDepth: png, 16UC1 or 32FC1 metres).
+    ValueError naming the format when the data does not decode."""
+    fmt = msg.format or ""
+    encoding = fmt.split(";", 1)[0].strip() if ";" in fmt else ""
+    if "compresseddepth" in fmt.lower():
+        array, out_encoding = _compressed_depth(msg, encoding)
+    else:
+        array = cv2.imdecode(np.frombuffer(bytes(msg.data), np.uint8), cv2.IMREAD_UNCHANGED)
+        if array is None:
+            raise ValueError(f"compressed image ({fmt!r}, {len(msg.data)} bytes) does not decode")
+        channels = 1 if array.ndim == 2 else array.shape[2]
+        out_encoding = {(np.dtype(np.uint8), 1): "mono8", (np.dtype(np.uint16), 1): "mono16",
+                        (np.dtype(np.uint8), 3): "bgr8", (np.dtype(np.uint8), 4): "bgra8"}.get((array.dtype, channels))
+        if out_encoding is None:
+            raise ValueError(f"compressed image ({fmt!r}) decodes to {channels} channels of {array.dtype}")
+    image = image_msg(array, out_encoding, 0.0, msg.header.frame_id)
+    return _Image(header=msg.header, height=image.height, width=image.width, encoding=image.encoding,
+                  is_bigendian=0, step=image.step, data=image.data)
+
+
+def as_image(raw: bytes, msgtype: str):
+    """An Image message from a serialised Image or CompressedImage."""
+    msg = deserialize(raw, msgtype)
+    return decompress(msg) if msgtype == COMPRESSED_IMAGE else msg

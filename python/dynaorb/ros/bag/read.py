@@ -116,14 +116,16 @@ class BagProvider:
 
     def camera_info_topic(self, role: str) -> str:
         """The CameraInfo topic beside an image topic (image_transport's rule:
-        the image topic's namespace + camera_info)."""
-        return self.topics[role].rsplit("/", 1)[0] + "/camera_info"
+        the image topic's namespace + camera_info; a compressed transport's
+        topic is under its image topic)."""
+        return m.base_topic(self.topics[role]).rsplit("/", 1)[0] + "/camera_info"
 
     def _first_message(self, topic: str, msgtype: str):
+        """The first message of the topic, an Image for a (compressed) image topic."""
         with Reader(self.path) as reader:
             conns = [c for c in reader.connections if c.topic == topic and c.msgtype == msgtype]
             for conn, _, raw in reader.messages(connections=conns):
-                return m.deserialize(raw, conn.msgtype)
+                return m.as_image(raw, msgtype) if msgtype in m.IMAGE_TYPES else m.deserialize(raw, msgtype)
         return None
 
     def _settings_from_camera_info(self, available: dict):
@@ -136,8 +138,8 @@ class BagProvider:
                                  f"{sidecar(self.path, 'settings.yaml').name} beside the bag), and no "
                                  f"{m.CAMERA_INFO} on {topic} beside {self.topics[role]} to take the camera from")
             infos[role] = self._first_message(topic, m.CAMERA_INFO)
-        first = self._first_message(self.topics["image"], m.IMAGE)
-        depth = self._first_message(self.topics["depth"], m.IMAGE) if self.sensor == "rgbd" else None
+        first = self._first_message(self.topics["image"], self._msgtypes["image"])
+        depth = self._first_message(self.topics["depth"], self._msgtypes["depth"]) if self.sensor == "rgbd" else None
         stamps = np.array([s for s, _ in self._frames])
         gaps = np.diff(stamps)
         fps = 1.0 / float(np.median(gaps)) if len(gaps) and np.median(gaps) > 0 else 30.0
@@ -164,12 +166,22 @@ class BagProvider:
         if unknown:
             raise ValueError(f"unknown topic roles {sorted(unknown)} (roles: {', '.join(ROLES)})")
         chosen = {}
-        # The first known layout whose main image topic is in the bag.
+
+        def present(topic: str | None) -> str | None:
+            """The topic, or its compressed transport's (image_transport's names), if in the bag."""
+            if topic is None:
+                return None
+            for candidate in (topic,) + tuple(topic + suffix for suffix in m.COMPRESSED_SUFFIXES):
+                if available.get(candidate) in m.IMAGE_TYPES:
+                    return candidate
+            return None
+
+        # The first known layout whose main image topic is in the bag (raw or compressed).
         for layout in _LAYOUTS:
-            if layout.image in available:
+            if present(layout.image):
                 for role in ROLES:
-                    topic = getattr(layout, role)
-                    if topic in available:
+                    topic = present(getattr(layout, role))
+                    if topic:
                         chosen[role] = topic
                 break
         chosen.update({r: t for r, t in overrides.items() if t})
@@ -177,8 +189,10 @@ class BagProvider:
             if topic not in available:
                 raise ValueError(f"{self.path}: topic {topic} ({role}) is not in the bag "
                                  f"(topics: {', '.join(sorted(available))})")
-            if available[topic] != m.IMAGE:
-                raise ValueError(f"{self.path}: topic {topic} carries {available[topic]}, not {m.IMAGE}")
+            if available[topic] not in m.IMAGE_TYPES:
+                raise ValueError(f"{self.path}: topic {topic} carries {available[topic]}, not "
+                                 f"{' or '.join(m.IMAGE_TYPES)}")
+        self._msgtypes = {role: available[topic] for role, topic in chosen.items()}
         if not use_labels:
             chosen.pop("labels", None)
         if "image" not in chosen:
@@ -289,8 +303,11 @@ class BagProvider:
             key = (self._role_of[conn.topic], _ns(m.header_stamp(raw)))
             if self._wanted.get(key, -1) >= i:
                 self._buffer[key] = raw
-        msgs = {role: m.deserialize(self._buffer.pop(k), m.IMAGE) for role, k in keys.items()}
         self._next = i + 1
+        try:
+            msgs = {role: m.as_image(self._buffer.pop(k), self._msgtypes[role]) for role, k in keys.items()}
+        except ValueError as exc:  # a compressed image that does not decode
+            raise _core.InputError(f"{self.topics['image']}@{stamp:.6f}: {exc}") from None
         if len(self._buffer) > 64:  # messages of frames already passed are never needed again
             self._buffer = {k: v for k, v in self._buffer.items() if self._wanted.get(k, -1) > i}
         return stamp, msgs
