@@ -170,6 +170,9 @@ NodeConfig read_config(const ros::NodeHandle& pnh) {
     throw InputError("~rectify needs a stereo sensor and LEFT./RIGHT. blocks in the settings");
   if (n.rectify && n.use_camera_info)
     throw InputError("~use_camera_info is for rectified images: with ~rectify the YAML's LEFT./RIGHT. blocks hold the calibration");
+  n.image_transport = param_or(pnh, "image_transport", n.image_transport);
+  if (n.image_transport != "raw" && n.image_transport != "compressed")
+    throw InputError("~image_transport must be 'raw' or 'compressed', got '" + n.image_transport + "'");
   n.use_labels = param_or(pnh, "use_labels", n.use_labels);
   n.wait_for_labels = param_or(pnh, "wait_for_labels", n.wait_for_labels);
   n.max_frames_waiting = param_or(pnh, "max_frames_waiting", n.max_frames_waiting);
@@ -267,6 +270,7 @@ std::string describe(const NodeConfig& cfg) {
       << n.base_frame << " -> " << (n.camera_frame.empty() ? "<image frame_id>" : n.camera_frame)
       << (n.external_odometry ? " (odom -> base from TF)" : "") << "; " << (n.approximate_sync ? "approximate" : "exact")
       << " sync, queue " << n.queue_size << (n.rectify ? ", rectifying raw stereo" : "")
+      << (n.image_transport == "compressed" ? ", compressed images" : "")
       << (n.use_camera_info ? ", intrinsics from camera_info" : "")
       << (n.use_labels ? (n.wait_for_labels ? ", labels (waited for)"
                                             : ", labels (newest" + first_wait +

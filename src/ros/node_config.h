@@ -38,6 +38,10 @@ struct NodeOptions {
   int queue_size = 10;            // per subscription and in the synchronizer
   bool rectify = false;           // stereo: raw images, rectified with the YAML's LEFT./RIGHT. blocks
   bool use_camera_info = false;   // intrinsics (and bf for stereo) from the first camera_info
+  // "raw": sensor_msgs/Image on the image topics; "compressed": image_transport's
+  // compressed transports, decoded here (support/compressed_image.h): the image
+  // topics' /compressed (jpeg, png) and the depth topic's /compressedDepth.
+  std::string image_transport = "raw";
 
   bool use_labels = true;         // subscribe semantic/labels
   bool wait_for_labels = false;   // each frame waits for labels with its stamp (bags that carry them)

@@ -5,6 +5,9 @@
 #include <sensor_msgs/point_cloud2_iterator.h>
 
 #include <cstring>
+#include <stdexcept>
+
+#include "support/compressed_image.h"
 
 namespace dynaorb::node {
 
@@ -25,6 +28,18 @@ cv::Mat image_for_tracking(const sensor_msgs::ImageConstPtr& msg, bool rgb_order
     error = std::string("cannot read a '") + msg->encoding + "' image: " + ex.what();
     return {};
   }
+}
+
+sensor_msgs::ImagePtr decompress(const sensor_msgs::CompressedImageConstPtr& msg, std::string& error) {
+  try {
+    DecodedImage d = decode_compressed(msg->format, msg->data);
+    return cv_bridge::CvImage(msg->header, d.encoding, d.image).toImageMsg();
+  } catch (const std::invalid_argument& e) {
+    error = e.what();
+  } catch (const cv::Exception& e) {
+    error = "compressed image ('" + msg->format + "'): " + e.what();
+  }
+  return nullptr;
 }
 
 cv::Mat depth_in_metres(const sensor_msgs::ImageConstPtr& msg, double depth_map_factor, std::string& error) {

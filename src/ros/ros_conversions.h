@@ -2,6 +2,7 @@
 // Small conversions between ROS messages and what the core and the support
 // code take: images through cv_bridge (always copied out of the message),
 // clouds into PointCloud2.
+#include <sensor_msgs/CompressedImage.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/PointCloud2.h>
 
@@ -22,6 +23,11 @@ cv::Mat image_for_tracking(const sensor_msgs::ImageConstPtr& msg, bool rgb_order
 // (the YAML's DepthMapFactor: 1000 for millimetres, 5000 for TUM's PNGs),
 // 32FC1 taken as metres (REP-118). Empty Mat and `error` otherwise.
 cv::Mat depth_in_metres(const sensor_msgs::ImageConstPtr& msg, double depth_map_factor, std::string& error);
+
+// The Image a sensor_msgs/CompressedImage was made from (image_transport's
+// compressed / compressedDepth formats: support/compressed_image.h), with its
+// header; nullptr and `error` naming the format when it does not decode.
+sensor_msgs::ImagePtr decompress(const sensor_msgs::CompressedImageConstPtr& msg, std::string& error);
 
 // Label image (mono8 / 8UC1 / mono16 / 16UC1); empty Mat and `error` otherwise.
 cv::Mat label_image(const sensor_msgs::ImageConstPtr& msg, std::string& error);

@@ -129,19 +129,40 @@ void SlamNode::subscribe() {
       break;
     case Sensor::kRGBD: a = "rgb/image", b = "depth/image", info_a = "rgb/camera_info"; break;
   }
+  // image_transport's topic names for the compressed transports: under the
+  // image topic as remapped (a launch file's remap of rgb/image applies).
+  const bool compressed = n.image_transport == "compressed";
+  const auto subscribe_compressed = [&](const std::string& topic, bool depth,
+                                        message_filters::PassThrough<Image>* into) {
+    return nh_.subscribe<sensor_msgs::CompressedImage>(
+        nh_.resolveName(topic) + (depth ? "/compressedDepth" : "/compressed"), q,
+        boost::bind(&SlamNode::on_compressed, this, boost::placeholders::_1, into));
+  };
   if (n.sensor == Sensor::kMono) {
-    sub_mono_ = nh_.subscribe(a, q, &SlamNode::on_mono, this);
+    if (compressed) sub_compressed_a_ = subscribe_compressed(a, false, nullptr);
+    else sub_mono_ = nh_.subscribe(a, q, &SlamNode::on_mono, this);
   } else {
     using namespace boost::placeholders;
-    sub_a_ = std::make_unique<message_filters::Subscriber<Image>>(nh_, a, q);
-    sub_b_ = std::make_unique<message_filters::Subscriber<Image>>(nh_, b, q);
-    if (n.approximate_sync) {
-      approx_ = std::make_unique<message_filters::Synchronizer<ApproxPolicy>>(ApproxPolicy(q), *sub_a_, *sub_b_);
-      approx_->setMaxIntervalDuration(ros::Duration(n.sync_max_interval));
-      approx_->registerCallback(boost::bind(&SlamNode::on_pair, this, _1, _2));
+    const auto synchronize = [&](auto& fa, auto& fb) {
+      if (n.approximate_sync) {
+        approx_ = std::make_unique<message_filters::Synchronizer<ApproxPolicy>>(ApproxPolicy(q), fa, fb);
+        approx_->setMaxIntervalDuration(ros::Duration(n.sync_max_interval));
+        approx_->registerCallback(boost::bind(&SlamNode::on_pair, this, _1, _2));
+      } else {
+        exact_ = std::make_unique<message_filters::Synchronizer<ExactPolicy>>(ExactPolicy(q), fa, fb);
+        exact_->registerCallback(boost::bind(&SlamNode::on_pair, this, _1, _2));
+      }
+    };
+    if (compressed) {
+      pass_a_ = std::make_unique<message_filters::PassThrough<Image>>();
+      pass_b_ = std::make_unique<message_filters::PassThrough<Image>>();
+      synchronize(*pass_a_, *pass_b_);
+      sub_compressed_a_ = subscribe_compressed(a, false, pass_a_.get());
+      sub_compressed_b_ = subscribe_compressed(b, n.sensor == Sensor::kRGBD, pass_b_.get());
     } else {
-      exact_ = std::make_unique<message_filters::Synchronizer<ExactPolicy>>(ExactPolicy(q), *sub_a_, *sub_b_);
-      exact_->registerCallback(boost::bind(&SlamNode::on_pair, this, _1, _2));
+      sub_a_ = std::make_unique<message_filters::Subscriber<Image>>(nh_, a, q);
+      sub_b_ = std::make_unique<message_filters::Subscriber<Image>>(nh_, b, q);
+      synchronize(*sub_a_, *sub_b_);
     }
   }
   if (n.use_camera_info) {
@@ -160,17 +181,27 @@ void SlamNode::subscribe() {
 
 // ---------------------------------------------------------------- inputs
 
+void SlamNode::count_unreadable(const std::string& error) {
+  ++counters_.unreadable;
+  ROS_WARN_THROTTLE(5.0, "dynaorb_node: frame skipped: %s (%ld so far)", error.c_str(), counters_.unreadable.load());
+}
+
 void SlamNode::on_mono(const sensor_msgs::ImageConstPtr& msg) {
   FrameInput f;
   f.header = msg->header;
   std::string error;
   f.image = image_for_tracking(msg, cfg_.settings.camera.rgb, error);
-  if (f.image.empty()) {
-    ++counters_.unreadable;
-    ROS_WARN_THROTTLE(5.0, "dynaorb_node: frame skipped: %s (%ld so far)", error.c_str(), counters_.unreadable.load());
-    return;
-  }
+  if (f.image.empty()) return count_unreadable(error);
   offer(std::move(f));
+}
+
+void SlamNode::on_compressed(const sensor_msgs::CompressedImageConstPtr& msg,
+                             message_filters::PassThrough<Image>* into) {
+  std::string error;
+  const sensor_msgs::ImagePtr image = decompress(msg, error);
+  if (!image) return count_unreadable(error);
+  if (into) into->add(image);  // the pair whose other image does not decode never completes
+  else on_mono(image);
 }
 
 void SlamNode::on_pair(const sensor_msgs::ImageConstPtr& a, const sensor_msgs::ImageConstPtr& b) {
@@ -185,11 +216,7 @@ void SlamNode::on_pair(const sensor_msgs::ImageConstPtr& a, const sensor_msgs::I
       f.depth_m = depth_in_metres(b, cfg_.settings.camera.depth_map_factor.value_or(1.0), error);
     }
   }
-  if (f.image.empty() || (f.right.empty() && f.depth_m.empty())) {
-    ++counters_.unreadable;
-    ROS_WARN_THROTTLE(5.0, "dynaorb_node: frame skipped: %s (%ld so far)", error.c_str(), counters_.unreadable.load());
-    return;
-  }
+  if (f.image.empty() || (f.right.empty() && f.depth_m.empty())) return count_unreadable(error);
   offer(std::move(f));
 }
 

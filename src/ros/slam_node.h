@@ -18,6 +18,7 @@
 //             (dynaorb/TrackingStatus, every frame).
 // Services    ~save_map, ~load_map (dynaorb/MapFile), ~reset (std_srvs/Trigger),
 //             ~set_localization_mode (std_srvs/SetBool), ~stats (Trigger, JSON counters).
+#include <message_filters/pass_through.h>
 #include <message_filters/subscriber.h>
 #include <message_filters/sync_policies/approximate_time.h>
 #include <message_filters/sync_policies/exact_time.h>
@@ -25,6 +26,7 @@
 #include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/CompressedImage.h>
 #include <sensor_msgs/Image.h>
 #include <std_srvs/SetBool.h>
 #include <std_srvs/Trigger.h>
@@ -87,6 +89,10 @@ class SlamNode {
 
   void subscribe();
   void on_mono(const sensor_msgs::ImageConstPtr& image);
+  // ~image_transport compressed: decoded, then as a raw image (mono) or into
+  // the pair's synchronizer (`into`); one that does not decode is counted.
+  void on_compressed(const sensor_msgs::CompressedImageConstPtr& msg, message_filters::PassThrough<Image>* into);
+  void count_unreadable(const std::string& error);
   void on_pair(const sensor_msgs::ImageConstPtr& a, const sensor_msgs::ImageConstPtr& b);
   void on_labels(const sensor_msgs::ImageConstPtr& labels);
   void on_camera_info(const sensor_msgs::CameraInfoConstPtr& info, bool right);
@@ -153,6 +159,9 @@ class SlamNode {
 
   // Inputs.
   std::unique_ptr<message_filters::Subscriber<Image>> sub_a_, sub_b_;
+  // ~image_transport compressed: the decoded images enter the synchronizer here.
+  std::unique_ptr<message_filters::PassThrough<Image>> pass_a_, pass_b_;
+  ros::Subscriber sub_compressed_a_, sub_compressed_b_;
   std::unique_ptr<message_filters::Synchronizer<ExactPolicy>> exact_;
   std::unique_ptr<message_filters::Synchronizer<ApproxPolicy>> approx_;
   ros::Subscriber sub_mono_, sub_labels_, sub_info_left_, sub_info_right_;

@@ -19,6 +19,7 @@ REFUSED = {
     "label_flow_scale": ("1.5", "~label_flow_scale must be in (0, 1]"),
     "queue_size": ("0", "~queue_size must be >= 1"),
     "time_jump_reset": ("-1.0", "~time_jump_reset must be a finite number of seconds >= 0"),
+    "image_transport": ("theora", "~image_transport must be 'raw' or 'compressed', got 'theora'"),
     # The core's options (~tracker/, ~mapping/, ~loop/), checked by their own validate().
     "tracker/min_pose_inliers": ("-1", "tracker option 'min_pose_inliers' is -1"),
     "tracker/reloc/pnp/probability": ("1.5", "tracker option 'reloc.pnp.probability' is 1.5"),
