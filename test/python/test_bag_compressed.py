@@ -1,6 +1,7 @@
 """Bags with image_transport's compressed images (CompressedImage on .../compressed,
-compressedDepth on .../compressedDepth), as robots record them: read by `bag run`
-and `bag to-dataset` as the raw images they were made from."""
+compressedDepth on .../compressedDepth), as robots record them (and `bag from-dataset
+--image-transport compressed` writes them): read by `bag run` and `bag to-dataset` as the
+raw images they were made from."""
 from __future__ import annotations
 
 import pathlib
@@ -10,20 +11,20 @@ import struct
 import cv2
 import numpy as np
 import pytest
-from rosbags.rosbag1 import Reader, Writer
+from rosbags.rosbag1 import Writer
 
 from dynaorb.ros.bag import (BagProvider, BagRunOptions, BagToDatasetOptions, BagWriteOptions, bag_to_dataset,
                              run_bag, write_dataset_bag)
 from dynaorb.ros.bag import messages as m
-from dynaorb.ros.bag.write import sidecar
 
 _CompressedImage = m.TYPESTORE.types[m.COMPRESSED_IMAGE]
 DEPTH_Z0, DEPTH_MAX = 100.0, 10.0  # compressed_depth_image_transport's defaults (depth_quantization, depth_max)
 
 
 def compressed_depth(depth: np.ndarray, encoding: str) -> bytes:
-    """compressed_depth_image_transport's encoding: 12-byte header + 16-bit PNG
-    (32FC1: inverse depth quantised with A = Z0 (Z0 + 1), B = 1 - A / depth_max)."""
+    """compressed_depth_image_transport's encoding, written here from its codec
+    (independent of messages.compress): 12-byte header + 16-bit PNG (32FC1:
+    inverse depth quantised with A = Z0 (Z0 + 1), B = 1 - A / depth_max)."""
     if encoding == "16UC1":
         return struct.pack("<iff", 0, 0.0, 0.0) + cv2.imencode(".png", depth)[1].tobytes()
     a = DEPTH_Z0 * (DEPTH_Z0 + 1.0)
@@ -34,47 +35,15 @@ def compressed_depth(depth: np.ndarray, encoding: str) -> bytes:
     return struct.pack("<iff", 0, a, b) + cv2.imencode(".png", q)[1].tobytes()
 
 
-def compressed(msg, depth: bool, image_format: str):
-    a = m.image_array(msg)
-    if depth:
-        fmt, data = f"{msg.encoding}; compressedDepth png", compressed_depth(a, msg.encoding)
-    else:
-        bgr = cv2.cvtColor(a, cv2.COLOR_RGB2BGR) if msg.encoding == "rgb8" else a
-        fmt = f"{msg.encoding}; {image_format} compressed {'bgr8' if a.ndim == 3 else msg.encoding}"
-        data = cv2.imencode("." + image_format, bgr)[1].tobytes()
-    return _CompressedImage(header=msg.header, format=fmt, data=np.frombuffer(data, np.uint8))
-
-
-def compress_bag(src: pathlib.Path, dst: pathlib.Path, image_format: str = "png") -> None:
-    """The bag with every image topic moved to its compressed transport's topic;
-    the rest (camera_info) as it is; the sidecars copied."""
-    with Reader(src) as reader, Writer(dst) as writer:
-        conns = {}
-        for conn in reader.connections:
-            if conn.msgtype == m.IMAGE:
-                depth = "depth" in conn.topic
-                topic = conn.topic + ("/compressedDepth" if depth else "/compressed")
-                conns[conn.id] = (writer.add_connection(topic, m.COMPRESSED_IMAGE, typestore=m.TYPESTORE), depth)
-            else:
-                conns[conn.id] = (writer.add_connection(conn.topic, conn.msgtype, typestore=m.TYPESTORE), None)
-        for conn, t, raw in reader.messages():
-            out, depth = conns[conn.id]
-            if depth is not None:
-                raw = m.serialize(compressed(m.deserialize(raw, m.IMAGE), depth, image_format))
-            writer.write(out, t, raw)
-    for what in ("settings.yaml", "groundtruth.tum"):
-        if sidecar(src, what).is_file():
-            shutil.copy(sidecar(src, what), sidecar(dst, what))
-
-
 @pytest.mark.parametrize("fixture,kind", [("synth_rgbd", "tum"), ("synth_stereo", "kitti")])
 def test_lossless_compressed_bag_runs_as_the_raw_one(tmp_path, request, fixture, kind):
     seq = request.getfixturevalue(fixture)
     path = seq if kind == "tum" else seq / "sequences" / "00"
     raw, packed = tmp_path / "raw.bag", tmp_path / "packed.bag"
     labels = str(seq / "labels") if kind == "tum" else None
-    write_dataset_bag(BagWriteOptions(kind=kind, path=str(path), out=str(raw), depth_encoding="16UC1", labels=labels))
-    compress_bag(raw, packed)
+    for bag, transport in ((raw, "raw"), (packed, "compressed")):  # png: lossless
+        write_dataset_bag(BagWriteOptions(kind=kind, path=str(path), out=str(bag), depth_encoding="16UC1",
+                                          labels=labels, image_transport=transport))
     provider = BagProvider(packed)
     expected = {"image": "/camera/rgb/image_color/compressed", "depth": "/camera/depth/image/compressedDepth",
                 "labels": "/camera/rgb/labels/compressed"} if kind == "tum" else \
@@ -108,6 +77,8 @@ def test_compressed_depth_in_metres_decodes_within_its_quantisation():
     depth[2, :5] = 12.0  # beyond depth_max: no depth
     msg = _CompressedImage(header=m.header(1.0, "cam"), format="32FC1; compressedDepth png",
                            data=np.frombuffer(compressed_depth(depth, "32FC1"), np.uint8))
+    # messages.compress makes the same bytes.
+    assert bytes(m.compress(m.image_msg(depth, "32FC1", 1.0, "cam")).data) == bytes(msg.data)
     image = m.decompress(msg)
     assert image.encoding == "32FC1" and (image.width, image.height) == (64, 48)
     out = m.image_array(image)
@@ -123,7 +94,7 @@ def test_jpeg_colour_and_bad_compressed_data(tmp_path):
     rgb = np.random.default_rng(0).integers(0, 255, (48, 64, 3), dtype=np.uint8)
     rgb = cv2.GaussianBlur(rgb, (9, 9), 3)  # a JPEG-friendly image
     msg = m.image_msg(rgb, "rgb8", 1.0, "cam")
-    image = m.decompress(compressed(msg, False, "jpg"))
+    image = m.decompress(m.compress(msg, "jpeg"))
     assert image.encoding == "bgr8"
     assert np.abs(cv2.cvtColor(m.image_array(image), cv2.COLOR_BGR2RGB).astype(int) - rgb).mean() < 3
     with pytest.raises(ValueError, match="does not decode"):

@@ -7,13 +7,13 @@ odometry. RGB-D: a static synthetic room rendered here goes as JPEG colour
 (/camera/rgb/image_color/compressed, the node's rgb/image remapped to /camera/rgb/image_color)
 and compressedDepth 32FC1 (/camera/depth/image/compressedDepth: a 12-byte
 header and the PNG of the quantised inverse depth, compressed_depth_image_transport's
-defaults) with camera_info to /rgbd: every frame tracked, ATE (the recorder on /rgbd/odom)
+defaults; both made by dynaorb.ros.bag.messages.compress, the Python bag tools' encoder,
+decoded here by the node's C++ codec) with camera_info to /rgbd: every frame tracked, ATE (the recorder on /rgbd/odom)
 within SLAM core I's 0.01 m. Each frame is published once the nodes answered the one before on
 tracking_state. Then a CompressedImage that does not decode: counted as unreadable.
 """
 import json
 import pathlib
-import struct
 import sys
 import threading
 import unittest
@@ -31,7 +31,6 @@ from dynaorb.msg import TrackingStatus
 FRAMES = 15       # KITTI 06 frames
 RGBD_FRAMES = 20  # synthetic room
 BASE = 1000.0     # s added to KITTI's stamps (which start at 0)
-Z0, DEPTH_MAX = 100.0, 10.0  # compressed_depth_image_transport's depth_quantization, depth_max
 
 
 def grey(path: pathlib.Path) -> np.ndarray:
@@ -57,15 +56,6 @@ def compressed_msg(fmt: str, data: bytes, stamp: rospy.Time, frame_id: str) -> C
     msg.format = fmt
     msg.data = data
     return msg
-
-
-def compressed_depth(metres: np.ndarray) -> bytes:
-    a = Z0 * (Z0 + 1.0)
-    b = 1.0 - a / DEPTH_MAX
-    q = np.zeros(metres.shape, np.uint16)
-    valid = np.isfinite(metres) & (metres > 0) & (metres < DEPTH_MAX)
-    q[valid] = (a / metres[valid] + b).astype(np.uint16)
-    return struct.pack("<iff", 0, a, b) + cv2.imencode(".png", q)[1].tobytes()
 
 
 class SlamCompressedTest(unittest.TestCase):
@@ -127,6 +117,7 @@ class SlamCompressedTest(unittest.TestCase):
 
         # RGB-D: a static synthetic room, JPEG colour and compressedDepth 32FC1.
         from dynaorb import core
+        from dynaorb.ros.bag.messages import compress, image_msg
         from dynaorb.synth import SynthConfig, generate
 
         room = pathlib.Path(rospy.get_param("~rgbd_dir")) / "room"
@@ -144,11 +135,9 @@ class SlamCompressedTest(unittest.TestCase):
             stamp = rospy.Time.from_sec(f.stamp)
             metres = f.depth.astype(np.float32) / np.float32(s.depth_map_factor)
             metres[f.depth == 0] = np.nan
-            pub["rgb"].publish(compressed_msg("bgr8; jpeg compressed bgr8",
-                                              cv2.imencode(".jpg", f.image, [cv2.IMWRITE_JPEG_QUALITY, 95])[1]
-                                              .tobytes(), stamp, "camera_rgb_optical_frame"))
-            pub["depth"].publish(compressed_msg("32FC1; compressedDepth png", compressed_depth(metres), stamp,
-                                                "camera_rgb_optical_frame"))
+            for key, image, encoding, fmt in (("rgb", f.image, "bgr8", "jpeg"), ("depth", metres, "32FC1", "png")):
+                packed = compress(image_msg(image, encoding, f.stamp, "camera_rgb_optical_frame"), fmt)
+                pub[key].publish(compressed_msg(packed.format, bytes(packed.data), stamp, "camera_rgb_optical_frame"))
             wait("rgbd", i + 1)
         cls.rgbd_stamps = [provider.stamp(i) for i in range(RGBD_FRAMES)]
 

@@ -276,6 +276,7 @@ def cmd_bag_from_dataset(args) -> int:
     summary = write_dataset_bag(BagWriteOptions(kind=args.kind, path=args.path, out=args.output, sensor=args.sensor,
                                                 depth_encoding=args.depth_encoding, labels=args.labels,
                                                 stamp_offset=args.stamp_offset, max_frames=args.max_frames,
+                                                image_transport=args.image_transport, image_format=args.image_format,
                                                 progress=not args.quiet))
     topics = ", ".join(f"{role} {topic}" for role, topic in summary["topics"].items())
     print(f"{summary['frames']} frames ({summary['sensor']}) written to {args.output}: {topics}"

@@ -247,6 +247,11 @@ def build_parser() -> argparse.ArgumentParser:
     bf.add_argument("--stamp-offset", type=float, help="seconds added to every stamp (default: 1 for sequences "
                                                        "starting below 1 s, as KITTI's, else 0)")
     bf.add_argument("--max-frames", type=int, help="only the first N frames")
+    bf.add_argument("--image-transport", choices=["raw", "compressed"], default="raw",
+                    help="compressed: images as image_transport records them, CompressedImage on TOPIC/compressed "
+                         "and depth on TOPIC/compressedDepth (default raw)")
+    bf.add_argument("--image-format", choices=["png", "jpeg"], default="png",
+                    help="compressed images: png (lossless, default) or jpeg; labels and depth are always png")
     bf.add_argument("--quiet", action="store_true")
     bf.set_defaults(func=commands.cmd_bag_from_dataset)
     br = bsub.add_parser("run", help="run SLAM on a bag serially and repeatably (every frame, no wall clock)")

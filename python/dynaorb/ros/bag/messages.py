@@ -25,6 +25,7 @@ COMPRESSED_SUFFIXES = ("/compressed", "/compressedDepth")
 _Header = TYPESTORE.types["std_msgs/msg/Header"]
 _Time = TYPESTORE.types["builtin_interfaces/msg/Time"]
 _Image = TYPESTORE.types[IMAGE]
+_CompressedImage = TYPESTORE.types[COMPRESSED_IMAGE]
 _CameraInfo = TYPESTORE.types[CAMERA_INFO]
 _Roi = TYPESTORE.types["sensor_msgs/msg/RegionOfInterest"]
 
@@ -204,6 +205,38 @@ def decompress(msg):
     image = image_msg(array, out_encoding, 0.0, msg.header.frame_id)
     return _Image(header=msg.header, height=image.height, width=image.width, encoding=image.encoding,
                   is_bigendian=0, step=image.step, data=image.data)
+
+
+def compress(msg, image_format: str = "png", depth_quantization: float = 100.0, depth_max: float = 10.0):
+    """The CompressedImage image_transport makes of an Image: its compressed
+    transport (jpeg or png; colour as bgr8) for intensity images, its
+    compressedDepth transport (png) for 16UC1 and 32FC1 depth, 32FC1 as the
+    quantised inverse depth q = A / depth + B with A = depth_quantization
+    (depth_quantization + 1), B = 1 - A / depth_max (0: no depth, or beyond
+    depth_max) as compressed_depth_image_transport's defaults."""
+    if image_format not in ("png", "jpeg"):
+        raise ValueError(f"image format must be png or jpeg, not {image_format!r}")
+    a = image_array(msg)
+    if msg.encoding in ("16UC1", "32FC1"):
+        if msg.encoding == "16UC1":
+            head, q = struct.pack("<iff", 0, 0.0, 0.0), a
+        else:
+            qa = depth_quantization * (depth_quantization + 1.0)
+            qb = 1.0 - qa / depth_max
+            q = np.zeros(a.shape, np.uint16)
+            valid = np.isfinite(a) & (a > 0) & (a < depth_max)
+            q[valid] = (qa / a[valid] + qb).astype(np.uint16)
+            head = struct.pack("<iff", 0, qa, qb)
+        fmt, data = f"{msg.encoding}; compressedDepth png", head + cv2.imencode(".png", q)[1].tobytes()
+    else:
+        to_bgr = {"rgb8": cv2.COLOR_RGB2BGR, "rgba8": cv2.COLOR_RGBA2BGR, "bgra8": cv2.COLOR_BGRA2BGR}
+        image = cv2.cvtColor(a, to_bgr[msg.encoding]) if msg.encoding in to_bgr else a
+        packed = "bgr8" if image.ndim == 3 else msg.encoding
+        ok, buf = cv2.imencode(".jpg" if image_format == "jpeg" else ".png", image)
+        if not ok:
+            raise ValueError(f"a {msg.encoding} image cannot be compressed as {image_format}")
+        fmt, data = f"{msg.encoding}; {image_format} compressed {packed}", buf.tobytes()
+    return _CompressedImage(header=msg.header, format=fmt, data=np.frombuffer(data, np.uint8))
 
 
 def as_image(raw: bytes, msgtype: str):

@@ -11,6 +11,11 @@ Topics (messages stamped with the frame's stamp, bag time = header stamp):
 - with --labels DIR: the label image of each frame (DIR/<image file name>,
   e.g. `dynaorb synth`'s labels/ or a `dynaorb segment` cache) as mono8 on
   the labels topic, stamped like the image.
+With --image-transport compressed, the images go as image_transport records
+them: sensor_msgs/CompressedImage on TOPIC/compressed (png, lossless, or
+--image-format jpeg; labels always png) and depth on TOPIC/compressedDepth
+(png; 32FC1 as compressed_depth_image_transport's quantised inverse depth,
+up to 10 m; 16UC1 as it is).
 Beside BAG: BAG-stem.settings.yaml (the dataset's settings) and, when the
 dataset has ground truth, BAG-stem.groundtruth.tum (the camera's poses, with
 the bag's stamps). KITTI's stamps start at 0, which ROS reads as "no time":
@@ -44,6 +49,8 @@ class BagWriteOptions:
     stamp_offset: float | None = None
     max_frames: int | None = None
     progress: bool = False
+    image_transport: str = "raw"  # or compressed (TOPIC/compressed, TOPIC/compressedDepth)
+    image_format: str = "png"     # compressed: png (lossless) or jpeg
 
 
 def sidecar(bag: str | pathlib.Path, what: str) -> pathlib.Path:
@@ -84,6 +91,10 @@ def write_dataset_bag(opts: BagWriteOptions) -> dict:
     _core = core()
     if opts.depth_encoding not in ("32FC1", "16UC1"):
         raise ValueError(f"depth encoding must be 32FC1 or 16UC1, not {opts.depth_encoding!r}")
+    if opts.image_transport not in ("raw", "compressed"):
+        raise ValueError(f"image transport must be raw or compressed, not {opts.image_transport!r}")
+    if opts.image_format not in ("png", "jpeg"):
+        raise ValueError(f"image format must be png or jpeg, not {opts.image_format!r}")
     provider = _core.open_dataset(opts.kind, opts.path, opts.sensor)
     for w in provider.warnings:
         log.warning("%s: %s", opts.path, w)
@@ -113,15 +124,22 @@ def write_dataset_bag(opts: BagWriteOptions) -> dict:
     with Writer(out) as writer:
         conn = {}
 
+        compressed = opts.image_transport == "compressed"
+
         def add(topic, msgtype):
             if topic and topic not in conn:
                 conn[topic] = writer.add_connection(topic, msgtype, typestore=m.TYPESTORE)
 
-        add(topics.image, m.IMAGE)
-        add(topics.right, m.IMAGE)
-        add(topics.depth, m.IMAGE)
+        def add_image(topic, depth=False):
+            if topic:
+                add(topic + ("/compressedDepth" if depth else "/compressed") if compressed else topic,
+                    m.COMPRESSED_IMAGE if compressed else m.IMAGE)
+
+        add_image(topics.image)
+        add_image(topics.right)
+        add_image(topics.depth, depth=True)
         if labels_dir is not None:
-            add(topics.labels, m.IMAGE)
+            add_image(topics.labels)
         infos = None
         for i in indices:
             try:
@@ -135,6 +153,11 @@ def write_dataset_bag(opts: BagWriteOptions) -> dict:
             seq = counts["frames"]
 
             def put(topic, msg):
+                if msg.__msgtype__ == m.IMAGE and compressed:
+                    depth = topic == topics.depth
+                    fmt = "png" if depth or topic == topics.labels else opts.image_format
+                    topic += "/compressedDepth" if depth else "/compressed"
+                    msg = m.compress(msg, fmt)
                 writer.write(conn[topic], t_ns, m.serialize(msg))
 
             image = frame.image
@@ -191,5 +214,7 @@ def write_dataset_bag(opts: BagWriteOptions) -> dict:
         _core.write_tum(str(gt_file), np.asarray(gt_stamps) + offset, gt_poses)
         files["groundtruth"] = str(gt_file)
     return {"kind": opts.kind, "path": str(opts.path), "sensor": sensor, "stamp_offset": offset,
-            "topics": {role: topic for role, topic in dataclasses.asdict(topics).items() if topic in conn},
-            "depth_encoding": opts.depth_encoding if topics.depth else None, **counts, "files": files}
+            "topics": {role: name for role, topic in dataclasses.asdict(topics).items() if isinstance(topic, str)
+                       for name in (topic, topic + "/compressed", topic + "/compressedDepth") if name in conn},
+            "depth_encoding": opts.depth_encoding if topics.depth else None,
+            "image_transport": opts.image_transport, **counts, "files": files}
