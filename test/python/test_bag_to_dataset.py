@@ -237,6 +237,8 @@ def test_to_dataset_errors_are_named(tmp_path, synth_stereo):
     (tmp_path / "full" / "x").write_text("")
     with pytest.raises(FileExistsError, match="not empty"):
         bag_to_dataset(BagToDatasetOptions(bag=str(bag), out=str(tmp_path / "full")))
+    with pytest.raises(ValueError, match="largest gap"):
+        bag_to_dataset(BagToDatasetOptions(bag=str(bag), out=str(tmp_path / "gap"), ground_truth_max_gap=float("nan")))
     with pytest.raises(ValueError, match="not both"):
         BagProvider(bag, ground_truth=str(tmp_path / "s.groundtruth.tum"), ground_truth_topic="/x")
     with pytest.raises(ValueError, match="is not in the bag"):

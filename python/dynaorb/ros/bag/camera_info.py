@@ -11,6 +11,8 @@ scale 1.2, 8 levels, FAST 20 / 7), ThDepth 40 (RGB-D) or 35 (stereo), and for
 RGB-D the virtual baseline of its TUM files (Camera.bf = fx * 0.08 m). Depth
 units: 16UC1 depth is millimetres (REP-118: DepthMapFactor 1000), 32FC1 is
 metres (written as 16-bit PNG at TUM's 5000 per metre by `bag to-dataset`).
+Camera.RGB is 0: colour reaches the System in OpenCV's BGR order, from a bag
+(converted whatever its encoding) as from the PNGs `bag to-dataset` writes.
 """
 from __future__ import annotations
 
@@ -35,8 +37,7 @@ def _positive(value: float, what: str) -> float:
     return value
 
 
-def settings_yaml(sensor: str, left, right=None, *, fps: float, depth_encoding: str | None = None,
-                  rgb: bool = True) -> str:
+def settings_yaml(sensor: str, left, right=None, *, fps: float, depth_encoding: str | None = None) -> str:
     """The settings YAML text for `sensor` from the image's CameraInfo `left`
     (and, stereo, the right image's `right`). ValueError naming what is missing
     or wrong (no size, no focal length, a distortion model other than
@@ -66,7 +67,7 @@ def settings_yaml(sensor: str, left, right=None, *, fps: float, depth_encoding: 
               f"Camera.k1: {dist[0]!r}", f"Camera.k2: {dist[1]!r}", f"Camera.p1: {dist[2]!r}",
               f"Camera.p2: {dist[3]!r}", f"Camera.k3: {dist[4]!r}",
               f"Camera.width: {int(left.width)}", f"Camera.height: {int(left.height)}",
-              f"Camera.fps: {_positive(fps, 'the image rate (fps)')!r}", f"Camera.RGB: {1 if rgb else 0}"]
+              f"Camera.fps: {_positive(fps, 'the image rate (fps)')!r}", "Camera.RGB: 0"]
     if bf is not None:
         lines += [f"Camera.bf: {bf!r}", f"ThDepth: {TH_DEPTH[sensor]!r}"]
     if sensor == "rgbd":

@@ -138,15 +138,13 @@ class BagProvider:
                                  f"{sidecar(self.path, 'settings.yaml').name} beside the bag), and no "
                                  f"{m.CAMERA_INFO} on {topic} beside {self.topics[role]} to take the camera from")
             infos[role] = self._first_message(topic, m.CAMERA_INFO)
-        first = self._first_message(self.topics["image"], self._msgtypes["image"])
         depth = self._first_message(self.topics["depth"], self._msgtypes["depth"]) if self.sensor == "rgbd" else None
         stamps = np.array([s for s, _ in self._frames])
         gaps = np.diff(stamps)
         fps = 1.0 / float(np.median(gaps)) if len(gaps) and np.median(gaps) > 0 else 30.0
         try:
             text = ci.settings_yaml(self.sensor, infos["image"], infos.get("right"), fps=round(fps, 3),
-                                    depth_encoding=depth.encoding if depth is not None else None,
-                                    rgb=first.encoding not in ("bgr8", "bgra8"))
+                                    depth_encoding=depth.encoding if depth is not None else None)
         except ValueError as exc:
             raise ValueError(f"{self.path}: {exc}") from None
         self.settings_yaml = text

@@ -113,6 +113,9 @@ def bag_to_dataset(opts: BagToDatasetOptions) -> dict:
     """Writes the dataset folder; returns a summary (layout, frames, files, counts,
     and the `dynaorb run` command line that reads it)."""
     _core = core()
+    if not (np.isfinite(opts.ground_truth_max_gap) and opts.ground_truth_max_gap > 0):
+        raise ValueError(f"the ground truth's largest gap to interpolate across must be a positive number of "
+                         f"seconds, got {opts.ground_truth_max_gap}")
     provider = BagProvider(opts.bag, settings=opts.config, sensor=opts.sensor, topics=opts.topics,
                            max_diff=opts.max_diff, ground_truth=opts.ground_truth, use_labels=opts.use_labels,
                            ground_truth_topic=opts.ground_truth_topic)
