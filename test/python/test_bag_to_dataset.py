@@ -267,3 +267,24 @@ def test_cli_to_dataset(tmp_path, synth_stereo, capsys):
     assert main(["run", "kitti", str(out / "sequences" / "00"), "--out", str(tmp_path / "run"),
                  "--vocabulary", "none", "--quiet"]) == 0
     assert "6/6 frames tracked" in capsys.readouterr().out
+
+
+def test_pairs_further_apart_than_the_tum_reader_pairs_are_counted(tmp_path):
+    bag = tmp_path / "late_depth.bag"
+    K = np.array([[80.0, 0, 31.5], [0, 80.0, 23.5], [0, 0, 1]])
+    with Writer(bag) as w:
+        rgb = w.add_connection("/camera/rgb/image_color", m.IMAGE, typestore=m.TYPESTORE)
+        depth = w.add_connection("/camera/depth/image", m.IMAGE, typestore=m.TYPESTORE)
+        info = w.add_connection("/camera/rgb/camera_info", m.CAMERA_INFO, typestore=m.TYPESTORE)
+        for k in range(4):
+            t = 50.0 + 0.1 * k
+            w.write(rgb, m.stamp_ns(t), m.serialize(m.image_msg(np.full((48, 64, 3), 90, np.uint8), "rgb8", t, "c")))
+            w.write(info, m.stamp_ns(t), m.serialize(m.camera_info_msg(t, "c", 64, 48, K, np.zeros(5),
+                                                                          np.hstack([K, np.zeros((3, 1))]))))
+            d = t + (0.03 if k % 2 else 0.01)  # every other depth image 30 ms late
+            w.write(depth, m.stamp_ns(d), m.serialize(m.image_msg(np.full((48, 64), 1.5, np.float32), "32FC1", d, "c")))
+    summary = bag_to_dataset(BagToDatasetOptions(bag=str(bag), out=str(tmp_path / "ds"), max_diff=0.05))
+    assert summary["frames"] == 4 and summary["depth_pairs_beyond_tum"] == 2
+    depth_png = cv2.imread(str(next((tmp_path / "ds" / "depth").iterdir())), cv2.IMREAD_UNCHANGED)
+    assert depth_png.dtype == np.uint16 and (depth_png == 7500).all()  # 1.5 m at 5000 per metre
+    assert len(core().open_dataset("tum", str(tmp_path / "ds"))) == 2  # the TUM reader pairs within 0.02 s

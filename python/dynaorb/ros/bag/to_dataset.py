@@ -41,6 +41,7 @@ log = logging.getLogger(__name__)
 
 _BGR = {"rgb8": cv2.COLOR_RGB2BGR, "rgba8": cv2.COLOR_RGBA2BGR, "bgra8": cv2.COLOR_BGRA2BGR}
 _GREY = ("mono8", "8UC1", "mono16", "16UC1")
+TUM_MAX_DT = 0.02  # s: how far apart the TUM reader (io/tum_dataset.cc) pairs colour and depth
 
 
 @dataclasses.dataclass
@@ -186,6 +187,13 @@ def _convert(opts: BagToDatasetOptions, provider: BagProvider, _core) -> dict:
     if counts["depth_too_far"]:
         log.warning("%d depth pixels beyond %.2f m (16 bits at DepthMapFactor %g) written as no depth",
                     counts["depth_too_far"], 65535 / factor, factor)
+    if tum:
+        far = sum(abs(s - d) > TUM_MAX_DT + 1e-9 for (s, _), (d, _) in zip(lists["image"], lists["depth"]))
+        counts["depth_pairs_beyond_tum"] = int(far)
+        if far:
+            log.warning("%d colour / depth pairs are more than %.2f s apart (--max-diff %.3f): the TUM reader "
+                        "associates within %.2f s and will skip those frames", far, TUM_MAX_DT, opts.max_diff,
+                        TUM_MAX_DT)
 
     files = {"sequence": str(seq)}
     settings.save(str(seq / "settings.yaml"))
