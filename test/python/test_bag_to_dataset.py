@@ -16,7 +16,7 @@ from dynaorb.cli.main import main
 from dynaorb.ros.bag import (BagProvider, BagRunOptions, BagToDatasetOptions, BagWriteOptions, bag_to_dataset,
                              run_bag, write_dataset_bag)
 from dynaorb.ros.bag import messages as m
-from dynaorb.ros.bag.poses import read_pose_topic, sample
+from dynaorb.ros.bag.poses import read_pose_topic, read_tf, sample
 from dynaorb.runner import RunOptions, run_dataset
 
 
@@ -239,7 +239,7 @@ def test_to_dataset_errors_are_named(tmp_path, synth_stereo):
         bag_to_dataset(BagToDatasetOptions(bag=str(bag), out=str(tmp_path / "full")))
     with pytest.raises(ValueError, match="largest gap"):
         bag_to_dataset(BagToDatasetOptions(bag=str(bag), out=str(tmp_path / "gap"), ground_truth_max_gap=float("nan")))
-    with pytest.raises(ValueError, match="not both"):
+    with pytest.raises(ValueError, match="one way"):
         BagProvider(bag, ground_truth=str(tmp_path / "s.groundtruth.tum"), ground_truth_topic="/x")
     with pytest.raises(ValueError, match="is not in the bag"):
         BagProvider(bag, ground_truth_topic="/mocap/pose")
@@ -288,3 +288,54 @@ def test_pairs_further_apart_than_the_tum_reader_pairs_are_counted(tmp_path):
     depth_png = cv2.imread(str(next((tmp_path / "ds" / "depth").iterdir())), cv2.IMREAD_UNCHANGED)
     assert depth_png.dtype == np.uint16 and (depth_png == 7500).all()  # 1.5 m at 5000 per metre
     assert len(core().open_dataset("tum", str(tmp_path / "ds"))) == 2  # the TUM reader pairs within 0.02 s
+
+
+def tf_message(msgtype: str, t: float):
+    """One TF message with the motion-capture pose (/world -> /kinect, leading slashes as
+    TUM's bags) and another transform beside it."""
+    types = m.TYPESTORE.types
+    out = []
+    for parent, child, T in (("/world", "/kinect", body_pose(t)), ("/kinect", "/openni_camera", np.eye(4))):
+        q = Rotation.from_matrix(T[:3, :3]).as_quat()
+        v = types["geometry_msgs/msg/Vector3"](x=T[0, 3], y=T[1, 3], z=T[2, 3])
+        quat = types["geometry_msgs/msg/Quaternion"](x=q[0], y=q[1], z=q[2], w=q[3])
+        out.append(types["geometry_msgs/msg/TransformStamped"](
+            header=m.header(t, parent), child_frame_id=child,
+            transform=types["geometry_msgs/msg/Transform"](translation=v, rotation=quat)))
+    return types[msgtype](transforms=out)
+
+
+@pytest.mark.parametrize("msgtype", m.TF_TYPES)
+def test_ground_truth_from_tf(tmp_path, msgtype):
+    bag = tmp_path / "tum_style.bag"
+    stamps = mono_bag_with_poses(bag, "geometry_msgs/msg/PoseStamped")
+    with Writer(tmp_path / "tf.bag") as w:  # the same frames with /tf instead of the pose topic
+        img = w.add_connection("/camera/image_raw", m.IMAGE, typestore=m.TYPESTORE)
+        info = w.add_connection("/camera/camera_info", m.CAMERA_INFO, typestore=m.TYPESTORE)
+        tf = w.add_connection("/tf", msgtype, typestore=m.TYPESTORE)
+        src = BagProvider(bag, topics={"image": "/camera/image_raw"})
+        K = np.array([[80.0, 0, 63.5], [0, 80.0, 47.5], [0, 0, 1]])
+        for i in range(len(src)):
+            t, msgs = src.load_messages(i)
+            w.write(img, m.stamp_ns(t), m.serialize(msgs["image"]))
+            w.write(info, m.stamp_ns(t), m.serialize(m.camera_info_msg(t, "cam", 128, 96, K, np.zeros(5),
+                                                                          np.hstack([K, np.zeros((3, 1))]))))
+        src.close()
+        for t in 100.0 + np.arange(120) / POSE_RATE:
+            w.write(tf, m.stamp_ns(t), m.serialize(tf_message(msgtype, t)))
+    gt_stamps, gt_poses = read_tf(tmp_path / "tf.bag", "world", "/kinect")
+    assert len(gt_stamps) == 120
+    np.testing.assert_allclose(gt_poses[50], body_pose(gt_stamps[50]), atol=1e-9)
+    _, inverse = read_tf(tmp_path / "tf.bag", "kinect", "world")  # the other way round: inverted
+    np.testing.assert_allclose(inverse[50], np.linalg.inv(body_pose(gt_stamps[50])), atol=1e-9)
+    with pytest.raises(ValueError, match="kinect -> openni_camera"):
+        read_tf(tmp_path / "tf.bag", "world", "openni_camera")  # not joined directly: the pairs named
+    out = tmp_path / "ds"
+    assert main(["bag", "to-dataset", str(tmp_path / "tf.bag"), "-o", str(out), "--topic", "image=/camera/image_raw",
+                 "--ground-truth-tf", "world:kinect", "--quiet"]) == 0
+    _, poses = core().open_dataset("kitti", str(out / "sequences" / "00"), "mono").ground_truth()
+    first_inv = np.linalg.inv(body_pose(stamps[0]))
+    for k, t in enumerate(stamps):
+        np.testing.assert_allclose(poses[k], first_inv @ body_pose(t), atol=1e-6)
+    assert main(["bag", "to-dataset", str(tmp_path / "tf.bag"), "-o", str(tmp_path / "x"),
+                 "--ground-truth-tf", "world"]) == 2

@@ -295,12 +295,22 @@ def _topics(args) -> dict | None:
     return topics or None
 
 
+def _ground_truth_tf(args) -> tuple[str, str] | None:
+    if not args.ground_truth_tf:
+        return None
+    parent, sep, child = args.ground_truth_tf.partition(":")
+    if not sep or not parent or not child:
+        raise ValueError(f"--ground-truth-tf {args.ground_truth_tf!r}: expected PARENT:CHILD")
+    return parent, child
+
+
 def cmd_bag_run(args) -> int:
     from dynaorb.ros.bag import BagRunOptions, run_bag
 
     stats = run_bag(BagRunOptions(bag=args.bag, config=args.config, sensor=args.sensor, topics=_topics(args),
                                   out=args.out, ground_truth=args.ground_truth,
-                                  ground_truth_topic=args.ground_truth_topic, use_labels=not args.no_labels,
+                                  ground_truth_topic=args.ground_truth_topic,
+                                  ground_truth_tf=_ground_truth_tf(args), use_labels=not args.no_labels,
                                   max_diff=args.max_diff, vocabulary=args.vocabulary, dynamic=args.dynamic,
                                   synchronous_mapping=not args.async_mapping, save_map=args.save_map,
                                   progress=not args.quiet))
@@ -314,6 +324,7 @@ def cmd_bag_to_dataset(args) -> int:
     s = bag_to_dataset(BagToDatasetOptions(bag=args.bag, out=args.output, config=args.config, sensor=args.sensor,
                                            topics=_topics(args), max_diff=args.max_diff,
                                            ground_truth=args.ground_truth, ground_truth_topic=args.ground_truth_topic,
+                                           ground_truth_tf=_ground_truth_tf(args),
                                            ground_truth_max_gap=args.ground_truth_max_gap,
                                            use_labels=not args.no_labels, overwrite=args.overwrite,
                                            progress=not args.quiet))

@@ -21,6 +21,9 @@ def _bag_input_args(p: argparse.ArgumentParser) -> None:
     gt.add_argument("--ground-truth-topic", metavar="TOPIC",
                     help="ground truth from a pose topic of the bag (PoseStamped, PoseWithCovarianceStamped, "
                          "TransformStamped or Odometry), taken as it is")
+    gt.add_argument("--ground-truth-tf", metavar="PARENT:CHILD",
+                    help="ground truth from the bag's TF: CHILD's pose in PARENT where a transform joins them "
+                         "directly (TUM's bags: world:kinect)")
     p.add_argument("--no-labels", action="store_true", help="ignore a labels topic in the bag")
     p.add_argument("--max-diff", type=float, default=0.02, help="RGB-D colour/depth association [s]")
 

@@ -12,9 +12,13 @@ import struct
 
 import cv2
 import numpy as np
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 TYPESTORE = get_typestore(Stores.ROS1_NOETIC)
+# TF's messages, which the store lacks: tf2's and tf's (older bags, TUM's own).
+TF_TYPES = ("tf2_msgs/msg/TFMessage", "tf/msg/tfMessage")
+for _name in TF_TYPES:
+    TYPESTORE.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", _name))
 IMAGE = "sensor_msgs/msg/Image"
 COMPRESSED_IMAGE = "sensor_msgs/msg/CompressedImage"
 IMAGE_TYPES = (IMAGE, COMPRESSED_IMAGE)

@@ -1,5 +1,5 @@
-"""Poses in a bag (a motion-capture or reference topic) as a trajectory, and a
-trajectory sampled at other stamps.
+"""Poses in a bag (a motion-capture or reference topic, or TF between two
+frames) as a trajectory, and a trajectory sampled at other stamps.
 
 The topic's poses are taken as they are, stamped with their headers: a
 motion-capture system's body or marker pose, not necessarily the camera's
@@ -56,6 +56,44 @@ def read_pose_topic(bag: str | pathlib.Path, topic: str) -> tuple[np.ndarray, np
         poses[k, :3, :3] = Rotation.from_quat(np.asarray(q) / norm).as_matrix()
         poses[k, :3, 3] = t
     return stamps, poses
+
+
+def _frame(name: str) -> str:
+    return name.strip().lstrip("/")
+
+
+def read_tf(bag: str | pathlib.Path, parent: str, child: str) -> tuple[np.ndarray, np.ndarray]:
+    """(stamps [s], 4x4 poses) of frame `child` in frame `parent` from the bag's
+    TF topics (tf2_msgs/TFMessage or tf/tfMessage on any topic, /tf as TUM's
+    bags carry the motion-capture pose), from the transforms that join the two
+    directly (parent -> child, or child -> parent inverted); frame names
+    without their leading slash. ValueError naming the pairs there are when
+    none joins them."""
+    parent, child = _frame(parent), _frame(child)
+    if not parent or not child or parent == child:
+        raise ValueError(f"ground truth from TF needs two different frames, got {parent!r} and {child!r}")
+    rows, pairs = {}, set()
+    with Reader(bag) as reader:
+        conns = [c for c in reader.connections if c.msgtype in m.TF_TYPES]
+        if not conns:
+            raise ValueError(f"{bag}: no TF topic ({' or '.join(m.TF_TYPES)})")
+        for conn, _, raw in reader.messages(connections=conns):
+            for tf in m.deserialize(raw, conn.msgtype).transforms:
+                a, b = _frame(tf.header.frame_id), _frame(tf.child_frame_id)
+                pairs.add((a, b))
+                if (a, b) not in ((parent, child), (child, parent)):
+                    continue
+                stamp = tf.header.stamp.sec + tf.header.stamp.nanosec * 1e-9
+                t, q = tf.transform.translation, tf.transform.rotation
+                T = np.eye(4)
+                T[:3, :3] = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
+                T[:3, 3] = [t.x, t.y, t.z]
+                rows.setdefault(m.stamp_ns(stamp), (stamp, T if a == parent else np.linalg.inv(T)))
+    if not rows:
+        raise ValueError(f"{bag}: no transform joins {parent} and {child} in its TF messages (frame pairs: "
+                         f"{', '.join(f'{a} -> {b}' for a, b in sorted(pairs)) or 'none'})")
+    ordered = [rows[k] for k in sorted(rows)]
+    return np.array([r[0] for r in ordered]), np.stack([r[1] for r in ordered])
 
 
 def sample(stamps: np.ndarray, poses: np.ndarray, at: np.ndarray, max_gap: float) -> np.ndarray:

@@ -29,7 +29,7 @@ from rosbags.rosbag1 import Reader
 from dynaorb import core
 from dynaorb.ros.bag import camera_info as ci
 from dynaorb.ros.bag import messages as m
-from dynaorb.ros.bag.poses import read_pose_topic
+from dynaorb.ros.bag.poses import read_pose_topic, read_tf
 from dynaorb.ros.bag.write import sidecar
 
 ROLES = ("image", "right", "depth", "labels")
@@ -57,11 +57,13 @@ class BagProvider:
 
     def __init__(self, path: str | pathlib.Path, *, settings=None, sensor: str | None = None,
                  topics: dict | None = None, max_diff: float = 0.02, ground_truth: str | None = None,
-                 use_labels: bool = True, ground_truth_topic: str | None = None):
+                 use_labels: bool = True, ground_truth_topic: str | None = None,
+                 ground_truth_tf: tuple[str, str] | None = None):
         """settings: a Settings object or YAML path (default: BAG-stem.settings.yaml,
         else the bag's camera_info); topics: role -> topic overrides (image, right,
         depth, labels); ground_truth: a TUM file (default: BAG-stem.groundtruth.tum
-        when present); ground_truth_topic: a stamped pose topic of the bag instead."""
+        when present); ground_truth_topic: a stamped pose topic of the bag instead;
+        ground_truth_tf: (parent, child) frames of the bag's TF instead."""
         _core = core()
         self.path = pathlib.Path(path)
         if not self.path.is_file():
@@ -69,14 +71,15 @@ class BagProvider:
         self.warnings: list[str] = []
         with Reader(self.path) as reader:
             available = {c.topic: c.msgtype for c in reader.connections}
-        if ground_truth and ground_truth_topic:
-            raise ValueError("give the ground truth as a file or as a topic, not both")
+        if sum(bool(g) for g in (ground_truth, ground_truth_topic, ground_truth_tf)) > 1:
+            raise ValueError("give the ground truth one way: a file, a pose topic or TF frames, not several")
         self._settings = self._load_settings(settings, available)
         self.settings_from_camera_info = self._settings is None
         self._ground_truth_file = pathlib.Path(ground_truth) if ground_truth else sidecar(self.path, "groundtruth.tum")
         if ground_truth and not self._ground_truth_file.is_file():
             raise FileNotFoundError(f"{ground_truth}: ground truth file does not exist")
-        self._ground_truth_topic = read_pose_topic(self.path, ground_truth_topic) if ground_truth_topic else None
+        self._ground_truth_topic = (read_pose_topic(self.path, ground_truth_topic) if ground_truth_topic else
+                                    read_tf(self.path, *ground_truth_tf) if ground_truth_tf else None)
         self.topics = self._choose_topics(available, topics or {}, sensor, use_labels)
         self.sensor = sensor or ("rgbd" if self.topics.get("depth") else "stereo" if self.topics.get("right")
                                  else "mono")

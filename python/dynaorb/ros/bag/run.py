@@ -25,6 +25,7 @@ class BagRunOptions:
     out: str = "out/bag"
     ground_truth: str | None = None    # TUM file (default: BAG-stem.groundtruth.tum)
     ground_truth_topic: str | None = None  # or a stamped pose topic of the bag
+    ground_truth_tf: tuple[str, str] | None = None  # or (parent, child) frames of the bag's TF
     use_labels: bool = True            # a labels topic masks the movable classes
     max_diff: float = 0.02             # s: RGB-D colour/depth association
     vocabulary: object = "default"
@@ -38,7 +39,7 @@ def run_bag(opts: BagRunOptions) -> dict:
     """Runs the bag; returns the stats also written to OUT/stats.json."""
     provider = BagProvider(opts.bag, settings=opts.config, sensor=opts.sensor, topics=opts.topics,
                            max_diff=opts.max_diff, ground_truth=opts.ground_truth, use_labels=opts.use_labels,
-                           ground_truth_topic=opts.ground_truth_topic)
+                           ground_truth_topic=opts.ground_truth_topic, ground_truth_tf=opts.ground_truth_tf)
     try:
         stats = run_dataset(RunOptions(kind="bag", path=str(opts.bag), sensor=provider.sensor, out=opts.out,
                                        dynamic=opts.dynamic, vocabulary=opts.vocabulary, progress=opts.progress,

@@ -54,6 +54,7 @@ class BagToDatasetOptions:
     max_diff: float = 0.02                 # s: RGB-D colour/depth association
     ground_truth: str | None = None        # TUM file (default: BAG-stem.groundtruth.tum)
     ground_truth_topic: str | None = None  # or a stamped pose topic of the bag
+    ground_truth_tf: tuple[str, str] | None = None  # or (parent, child) frames of the bag's TF
     ground_truth_max_gap: float = 0.1      # s: ground truth interpolated across gaps up to this
     use_labels: bool = True
     overwrite: bool = False
@@ -119,7 +120,7 @@ def bag_to_dataset(opts: BagToDatasetOptions) -> dict:
                          f"seconds, got {opts.ground_truth_max_gap}")
     provider = BagProvider(opts.bag, settings=opts.config, sensor=opts.sensor, topics=opts.topics,
                            max_diff=opts.max_diff, ground_truth=opts.ground_truth, use_labels=opts.use_labels,
-                           ground_truth_topic=opts.ground_truth_topic)
+                           ground_truth_topic=opts.ground_truth_topic, ground_truth_tf=opts.ground_truth_tf)
     try:
         return _convert(opts, provider, _core)
     finally:
