@@ -339,3 +339,31 @@ def test_ground_truth_from_tf(tmp_path, msgtype):
         np.testing.assert_allclose(poses[k], first_inv @ body_pose(t), atol=1e-6)
     assert main(["bag", "to-dataset", str(tmp_path / "tf.bag"), "-o", str(tmp_path / "x"),
                  "--ground-truth-tf", "world"]) == 2
+
+
+def test_images_without_header_stamps_take_the_bags_record_times(tmp_path):
+    """A driver that leaves header stamps at zero: the bag's record times stand in, and
+    an RGB-D pair recorded 5 ms apart is still paired."""
+    bag = tmp_path / "unstamped.bag"
+    K = np.array([[80.0, 0, 31.5], [0, 80.0, 23.5], [0, 0, 1]])
+    with Writer(bag) as w:
+        rgb = w.add_connection("/camera/rgb/image_color", m.IMAGE, typestore=m.TYPESTORE)
+        depth = w.add_connection("/camera/depth/image", m.IMAGE, typestore=m.TYPESTORE)
+        info = w.add_connection("/camera/rgb/camera_info", m.CAMERA_INFO, typestore=m.TYPESTORE)
+        for k in range(3):
+            t = 70.0 + 0.1 * k
+            image = np.full((48, 64, 3), 60 + k, np.uint8)
+            w.write(rgb, m.stamp_ns(t), m.serialize(m.image_msg(image, "rgb8", 0.0, "c")))
+            w.write(info, m.stamp_ns(t), m.serialize(m.camera_info_msg(0.0, "c", 64, 48, K, np.zeros(5),
+                                                                          np.hstack([K, np.zeros((3, 1))]))))
+            w.write(depth, m.stamp_ns(t + 0.005),
+                    m.serialize(m.image_msg(np.full((48, 64), 2.0, np.float32), "32FC1", 0.0, "c")))
+    provider = BagProvider(bag)
+    assert len(provider) == 3 and provider.stamp(2) == pytest.approx(70.2, abs=1e-6)
+    assert any("record times" in w for w in provider.warnings)
+    assert provider.load(1).image[0, 0, 0] == 61
+    provider.close()
+    summary = bag_to_dataset(BagToDatasetOptions(bag=str(bag), out=str(tmp_path / "ds")))
+    assert summary["frames"] == 3 and summary["depth_pairs_beyond_tum"] == 0
+    back = core().open_dataset("tum", str(tmp_path / "ds"))
+    assert [back.stamp(i) for i in range(3)] == pytest.approx([70.0, 70.1, 70.2], abs=1e-6)

@@ -201,22 +201,37 @@ class BagProvider:
                              f"give one with --topic image=TOPIC)")
         return chosen
 
+    def _stamp(self, raw: bytes, bag_time_ns: int) -> float:
+        """A message's stamp: its header's, or the bag's record time when the
+        images' headers carry none (_index)."""
+        return bag_time_ns * 1e-9 if self._bag_time else m.header_stamp(raw)
+
     def _index(self) -> None:
         stamps = collections.defaultdict(list)
+        times = collections.defaultdict(list)
         topic_of = {t: r for r, t in self.topics.items()}
         with Reader(self.path) as reader:
             conns = [c for c in reader.connections if c.topic in topic_of]
-            for conn, _, raw in reader.messages(connections=conns):
+            for conn, t, raw in reader.messages(connections=conns):
                 stamps[topic_of[conn.topic]].append(m.header_stamp(raw))
+                times[topic_of[conn.topic]].append(t * 1e-9)
+        # Some drivers leave the header stamp at zero: the bag's record times
+        # stand in for every stream then, and pairs are matched within max_diff.
+        self._bag_time = bool(stamps["image"]) and not any(stamps["image"])
+        same = _SAME_STAMP
+        if self._bag_time:
+            stamps, same = times, self.max_diff
+            self.warnings.append(f"the images on {self.topics['image']} carry no header stamps: the bag's record "
+                                 f"times are used instead (pairs matched within {self.max_diff} s)")
         main = sorted(set(stamps["image"]))
         if len(main) < len(stamps["image"]):
             self.warnings.append(f"{len(stamps['image']) - len(main)} image messages with a repeated stamp ignored")
         partners = {}
         if self.sensor == "stereo":
-            partners["right"] = self._pair(main, stamps["right"], _SAME_STAMP)
+            partners["right"] = self._pair(main, stamps["right"], same)
         elif self.sensor == "rgbd":
             partners["depth"] = self._pair(main, stamps["depth"], self.max_diff)
-        labels = self._pair(main, stamps["labels"], _SAME_STAMP) if "labels" in self.topics else {}
+        labels = self._pair(main, stamps["labels"], same) if "labels" in self.topics else {}
         frames = []
         for s in main:
             parts = {"image": s}
@@ -229,9 +244,9 @@ class BagProvider:
             frames.append((s, parts))
         dropped = len(main) - len(frames)
         if dropped:
+            exact = self.sensor == "stereo" and not self._bag_time
             self.warnings.append(f"{dropped} images without a {'right image' if self.sensor == 'stereo' else 'depth'}"
-                                 f" {'of the same stamp' if self.sensor == 'stereo' else f'within {self.max_diff} s'}"
-                                 f" skipped")
+                                 f" {'of the same stamp' if exact else f'within {self.max_diff} s'} skipped")
         if "labels" in self.topics and len(labels) < len(frames):
             self.warnings.append(f"{len(frames) - len(labels)} frames without labels of their stamp")
         self._frames = frames
@@ -270,6 +285,10 @@ class BagProvider:
     def stamp(self, i: int) -> float:
         return self._frames[i][0]
 
+    def part_stamps(self, i: int) -> dict:
+        """Frame i's messages' stamps by role (a depth image's may differ from its colour image's)."""
+        return dict(self._frames[i][1])
+
     def default_settings(self):
         return self._settings
 
@@ -298,10 +317,10 @@ class BagProvider:
         keys = {role: (role, _ns(s)) for role, s in parts.items()}
         while any(k not in self._buffer for k in keys.values()):
             try:
-                conn, _, raw = next(self._messages)
+                conn, t, raw = next(self._messages)
             except StopIteration:
                 raise _core.InputError(f"{self.path}: the bag ended before frame {i}'s messages") from None
-            key = (self._role_of[conn.topic], _ns(m.header_stamp(raw)))
+            key = (self._role_of[conn.topic], _ns(self._stamp(raw, t)))
             if self._wanted.get(key, -1) >= i:
                 self._buffer[key] = raw
         self._next = i + 1

@@ -169,8 +169,7 @@ def _convert(opts: BagToDatasetOptions, provider: BagProvider, _core) -> dict:
             continue
         for role, image in files.items():
             if role == "depth":
-                s = msgs["depth"].header.stamp
-                depth_stamp = s.sec + s.nanosec * 1e-9
+                depth_stamp = provider.part_stamps(i)["depth"]
                 _write(image_dirs[role] / f"{depth_stamp:.6f}.png", image)
                 lists["depth"].append((depth_stamp, f"depth/{depth_stamp:.6f}.png"))
                 counts["depth_too_far"] += too_far
