@@ -240,3 +240,20 @@ def test_cli_from_dataset_and_run(tmp_path, synth_rgbd, capsys):
     out = capsys.readouterr().out
     assert "frames tracked" in out
     assert json.loads((tmp_path / "out" / "stats.json").read_text())["frames_with_labels"] == 8
+
+
+def test_bag_run_segments_in_process(tmp_path, synth_rgbd, data):
+    """`bag run --segment`: the network's labels instead of the bag's labels topic."""
+    model = data.parent / "models" / "segmentation" / "deeplabv3_mnv2_dm05_pascal_quant.onnx"
+    if not model.is_file():
+        pytest.skip(f"{model} not found")
+    bag = tmp_path / "synth.bag"
+    write_dataset_bag(BagWriteOptions(kind="tum", path=str(synth_rgbd), out=str(bag), depth_encoding="16UC1",
+                                      labels=str(synth_rgbd / "labels")))
+    assert main(["bag", "run", str(bag), "--out", str(tmp_path / "out"), "--vocabulary", "none", "--quiet",
+                 "--dynamic", "full", "--segment", str(model), "--segment-mode", "sync"]) == 0
+    stats = json.loads((tmp_path / "out" / "stats.json").read_text())
+    assert stats["tracked_frames"] == stats["frames"] == 8
+    assert stats["frames_with_labels"] == 0  # the bag's labels topic is not read
+    assert stats["segmentation"]["frames"] == {"fresh": 8}
+    assert "labels" not in stats["bag"]["topics"]

@@ -313,7 +313,7 @@ def cmd_bag_run(args) -> int:
                                   ground_truth_tf=_ground_truth_tf(args), use_labels=not args.no_labels,
                                   max_diff=args.max_diff, vocabulary=args.vocabulary, dynamic=args.dynamic,
                                   synchronous_mapping=not args.async_mapping, save_map=args.save_map,
-                                  progress=not args.quiet))
+                                  segment=args.segment, segment_mode=args.segment_mode, progress=not args.quiet))
     print(summary_line(args.out, stats))
     return 0
 

@@ -266,6 +266,13 @@ def build_parser() -> argparse.ArgumentParser:
     br.add_argument("--async-mapping", action="store_true",
                     help="local mapping concurrently (default: each keyframe mapped before the next frame)")
     br.add_argument("--save-map", metavar="OUT.map")
+    br.add_argument("--segment", metavar="MODEL",
+                    help="segment in-process with this model (file or `dynaorb models list` name), for a bag "
+                         "without labels: its labels feed --dynamic's semantic stage (or mask the movable classes); "
+                         "a labels topic in the bag is then not read")
+    br.add_argument("--segment-mode", choices=["async", "sync"], default="async",
+                    help="async (default): the network on its own thread, older masks moved by optical flow; "
+                         "sync: every frame waits for its own")
     br.add_argument("--quiet", action="store_true")
     br.set_defaults(func=commands.cmd_bag_run)
     bt = bsub.add_parser("to-dataset", help="write a bag's frames as a dataset folder: RGB-D in TUM's layout, "

@@ -33,18 +33,25 @@ class BagRunOptions:
     synchronous_mapping: bool = True
     save_map: str | None = None
     progress: bool = True
+    # In-process segmentation (a model file or `dynaorb models` name) for a bag
+    # without labels, as `dynaorb run --segment`: its labels feed the `dynamic`
+    # preset's semantic stage, or mask the movable classes; a labels topic in
+    # the bag is then not read.
+    segment: str | None = None
+    segment_mode: str = "async"
 
 
 def run_bag(opts: BagRunOptions) -> dict:
     """Runs the bag; returns the stats also written to OUT/stats.json."""
     provider = BagProvider(opts.bag, settings=opts.config, sensor=opts.sensor, topics=opts.topics,
-                           max_diff=opts.max_diff, ground_truth=opts.ground_truth, use_labels=opts.use_labels,
+                           max_diff=opts.max_diff, ground_truth=opts.ground_truth,
+                           use_labels=opts.use_labels and not opts.segment,
                            ground_truth_topic=opts.ground_truth_topic, ground_truth_tf=opts.ground_truth_tf)
     try:
         stats = run_dataset(RunOptions(kind="bag", path=str(opts.bag), sensor=provider.sensor, out=opts.out,
                                        dynamic=opts.dynamic, vocabulary=opts.vocabulary, progress=opts.progress,
                                        synchronous_mapping=opts.synchronous_mapping, save_map=opts.save_map,
-                                       provider=provider))
+                                       segment=opts.segment, segment_mode=opts.segment_mode, provider=provider))
     finally:
         provider.close()
     stats["bag"] = {"topics": provider.topics, "frames": len(provider)}
