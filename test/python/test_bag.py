@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import pathlib
+import shutil
 
 import cv2
 import numpy as np
@@ -13,6 +14,7 @@ from dynaorb import core
 from dynaorb.cli.main import main
 from dynaorb.ros.bag import BagProvider, BagRunOptions, BagWriteOptions, run_bag, write_dataset_bag
 from dynaorb.ros.bag import messages as m
+from dynaorb.ros.bag.write import sidecar
 from dynaorb.runner import RunOptions, run_dataset
 
 
@@ -257,3 +259,37 @@ def test_bag_run_segments_in_process(tmp_path, synth_rgbd, data):
     assert stats["frames_with_labels"] == 0  # the bag's labels topic is not read
     assert stats["segmentation"]["frames"] == {"fresh": 8}
     assert "labels" not in stats["bag"]["topics"]
+
+
+def split_bag(bag: pathlib.Path, at_ns: int) -> list[pathlib.Path]:
+    """The bag as `rosbag record --split` leaves it: two parts, messages before / from at_ns."""
+    parts = [bag.with_name(f"{bag.stem}_{k}.bag") for k in range(2)]
+    with Reader(bag) as reader, Writer(parts[0]) as w0, Writer(parts[1]) as w1:
+        conns = {}
+        for conn, t, raw in reader.messages():
+            w = w0 if t < at_ns else w1
+            key = (id(w), conn.topic)
+            if key not in conns:
+                conns[key] = w.add_connection(conn.topic, conn.msgtype, typestore=m.TYPESTORE)
+            w.write(conns[key], t, raw)
+    return parts
+
+
+def test_split_recording_runs_as_one_bag(tmp_path, synth_rgbd, capsys):
+    bag = tmp_path / "whole.bag"
+    write_dataset_bag(BagWriteOptions(kind="tum", path=str(synth_rgbd), out=str(bag), depth_encoding="16UC1"))
+    whole = BagProvider(bag)
+    parts = split_bag(bag, m.stamp_ns(whole.stamp(4)))
+    whole.close()
+    shutil.copy(sidecar(bag, "settings.yaml"), sidecar(parts[0], "settings.yaml"))  # the first part's sidecars
+    shutil.copy(sidecar(bag, "groundtruth.tum"), sidecar(parts[0], "groundtruth.tum"))
+    a = run_bag(BagRunOptions(bag=str(bag), out=str(tmp_path / "a"), vocabulary="none", progress=False))
+    assert main(["bag", "run", *map(str, parts), "--out", str(tmp_path / "b"), "--vocabulary", "none",
+                 "--quiet"]) == 0
+    b = json.loads((tmp_path / "b" / "stats.json").read_text())
+    assert b["frames"] == a["frames"] == 8 and b["tracked_frames"] == 8
+    assert b["bag"]["files"] == [str(p) for p in parts]
+    np.testing.assert_allclose(trajectory(tmp_path / "b"), trajectory(tmp_path / "a"), atol=1e-9)
+    assert b["ate"]["rmse"] == pytest.approx(a["ate"]["rmse"], abs=1e-12)
+    with pytest.raises(FileNotFoundError, match="missing.bag"):
+        BagProvider([parts[0], tmp_path / "missing.bag"])

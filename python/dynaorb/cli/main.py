@@ -258,7 +258,7 @@ def build_parser() -> argparse.ArgumentParser:
     bf.add_argument("--quiet", action="store_true")
     bf.set_defaults(func=commands.cmd_bag_from_dataset)
     br = bsub.add_parser("run", help="run SLAM on a bag serially and repeatably (every frame, no wall clock)")
-    br.add_argument("bag")
+    br.add_argument("bag", nargs="+", help="a bag, or the parts of a split recording (read as one)")
     _bag_input_args(br)
     br.add_argument("--out", default="out/bag", help="output folder (default out/bag)")
     br.add_argument("--vocabulary", default="default", metavar="FILE|default|none")
@@ -277,7 +277,7 @@ def build_parser() -> argparse.ArgumentParser:
     br.set_defaults(func=commands.cmd_bag_run)
     bt = bsub.add_parser("to-dataset", help="write a bag's frames as a dataset folder: RGB-D in TUM's layout, "
                                             "stereo and mono in KITTI's, with settings and ground truth")
-    bt.add_argument("bag")
+    bt.add_argument("bag", nargs="+", help="a bag, or the parts of a split recording (read as one)")
     bt.add_argument("-o", "--output", required=True, metavar="DIR")
     _bag_input_args(bt)
     bt.add_argument("--ground-truth-max-gap", type=float, default=0.1, metavar="S",

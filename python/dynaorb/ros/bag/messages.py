@@ -8,10 +8,12 @@ rectified images for KITTI, and EuRoC's /cam0/image_raw, /cam1/image_raw.
 from __future__ import annotations
 
 import dataclasses
+import pathlib
 import struct
 
 import cv2
 import numpy as np
+from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 TYPESTORE = get_typestore(Stores.ROS1_NOETIC)
@@ -59,6 +61,23 @@ STEREO_TOPICS = Topics(image="/camera/left/image_rect", right="/camera/right/ima
                        right_frame_id="camera_right_optical_frame")
 EUROC_TOPICS = Topics(image="/cam0/image_raw", right="/cam1/image_raw", labels="/cam0/labels",
                       frame_id="cam0", right_frame_id="cam1")
+
+
+def bag_paths(bags) -> list[pathlib.Path]:
+    """One bag or several (a recording split with `rosbag record --split`), as
+    paths; FileNotFoundError naming one that does not exist."""
+    paths = [pathlib.Path(b) for b in ([bags] if isinstance(bags, (str, pathlib.Path)) else bags)]
+    if not paths:
+        raise ValueError("no bag given")
+    for p in paths:
+        if not p.is_file():
+            raise FileNotFoundError(f"{p}: bag does not exist")
+    return paths
+
+
+def open_bags(bags) -> AnyReader:
+    """A reader over the bags as one, messages in time order (call open() or use `with`)."""
+    return AnyReader(bag_paths(bags), default_typestore=TYPESTORE)
 
 
 def stamp_ns(stamp: float) -> int:

@@ -11,7 +11,6 @@ from __future__ import annotations
 import pathlib
 
 import numpy as np
-from rosbags.rosbag1 import Reader
 from scipy.spatial.transform import Rotation, Slerp
 
 from dynaorb.ros.bag import messages as m
@@ -27,11 +26,11 @@ def _position_orientation(msg, msgtype: str):
     return pose.position, pose.orientation
 
 
-def read_pose_topic(bag: str | pathlib.Path, topic: str) -> tuple[np.ndarray, np.ndarray]:
+def read_pose_topic(bag, topic: str) -> tuple[np.ndarray, np.ndarray]:
     """(stamps [s], 4x4 poses) of `topic`, in header-stamp order; repeated
     stamps keep the first. ValueError for a topic that is not in the bag, of a
     type that is not a stamped pose, or with a quaternion that is not one."""
-    with Reader(bag) as reader:
+    with m.open_bags(bag) as reader:
         conns = [c for c in reader.connections if c.topic == topic]
         if not conns:
             raise ValueError(f"{bag}: topic {topic} is not in the bag (topics: "
@@ -62,7 +61,7 @@ def _frame(name: str) -> str:
     return name.strip().lstrip("/")
 
 
-def read_tf(bag: str | pathlib.Path, parent: str, child: str) -> tuple[np.ndarray, np.ndarray]:
+def read_tf(bag, parent: str, child: str) -> tuple[np.ndarray, np.ndarray]:
     """(stamps [s], 4x4 poses) of frame `child` in frame `parent` from the bag's
     TF topics (tf2_msgs/TFMessage or tf/tfMessage on any topic, /tf as TUM's
     bags carry the motion-capture pose), from the transforms that join the two
@@ -73,7 +72,7 @@ def read_tf(bag: str | pathlib.Path, parent: str, child: str) -> tuple[np.ndarra
     if not parent or not child or parent == child:
         raise ValueError(f"ground truth from TF needs two different frames, got {parent!r} and {child!r}")
     rows, pairs = {}, set()
-    with Reader(bag) as reader:
+    with m.open_bags(bag) as reader:
         conns = [c for c in reader.connections if c.msgtype in m.TF_TYPES]
         if not conns:
             raise ValueError(f"{bag}: no TF topic ({' or '.join(m.TF_TYPES)})")

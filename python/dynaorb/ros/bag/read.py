@@ -24,7 +24,6 @@ import pathlib
 import tempfile
 
 import numpy as np
-from rosbags.rosbag1 import Reader
 
 from dynaorb import core
 from dynaorb.ros.bag import camera_info as ci
@@ -55,21 +54,21 @@ def _ns(stamp: float) -> int:
 class BagProvider:
     kind = "bag"
 
-    def __init__(self, path: str | pathlib.Path, *, settings=None, sensor: str | None = None,
+    def __init__(self, path, *, settings=None, sensor: str | None = None,
                  topics: dict | None = None, max_diff: float = 0.02, ground_truth: str | None = None,
                  use_labels: bool = True, ground_truth_topic: str | None = None,
                  ground_truth_tf: tuple[str, str] | None = None):
-        """settings: a Settings object or YAML path (default: BAG-stem.settings.yaml,
+        """path: a bag, or the parts of a split recording in order (read as one;
+        sidecars are the first part's); settings: a Settings object or YAML path (default: BAG-stem.settings.yaml,
         else the bag's camera_info); topics: role -> topic overrides (image, right,
         depth, labels); ground_truth: a TUM file (default: BAG-stem.groundtruth.tum
         when present); ground_truth_topic: a stamped pose topic of the bag instead;
         ground_truth_tf: (parent, child) frames of the bag's TF instead."""
         _core = core()
-        self.path = pathlib.Path(path)
-        if not self.path.is_file():
-            raise FileNotFoundError(f"{self.path}: bag does not exist")
+        self.paths = m.bag_paths(path)
+        self.path = self.paths[0]  # sidecars are the first bag's
         self.warnings: list[str] = []
-        with Reader(self.path) as reader:
+        with m.open_bags(self.paths) as reader:
             available = {c.topic: c.msgtype for c in reader.connections}
         if sum(bool(g) for g in (ground_truth, ground_truth_topic, ground_truth_tf)) > 1:
             raise ValueError("give the ground truth one way: a file, a pose topic or TF frames, not several")
@@ -78,8 +77,8 @@ class BagProvider:
         self._ground_truth_file = pathlib.Path(ground_truth) if ground_truth else sidecar(self.path, "groundtruth.tum")
         if ground_truth and not self._ground_truth_file.is_file():
             raise FileNotFoundError(f"{ground_truth}: ground truth file does not exist")
-        self._ground_truth_topic = (read_pose_topic(self.path, ground_truth_topic) if ground_truth_topic else
-                                    read_tf(self.path, *ground_truth_tf) if ground_truth_tf else None)
+        self._ground_truth_topic = (read_pose_topic(self.paths, ground_truth_topic) if ground_truth_topic else
+                                    read_tf(self.paths, *ground_truth_tf) if ground_truth_tf else None)
         self.topics = self._choose_topics(available, topics or {}, sensor, use_labels)
         self.sensor = sensor or ("rgbd" if self.topics.get("depth") else "stereo" if self.topics.get("right")
                                  else "mono")
@@ -125,7 +124,7 @@ class BagProvider:
 
     def _first_message(self, topic: str, msgtype: str):
         """The first message of the topic, an Image for a (compressed) image topic."""
-        with Reader(self.path) as reader:
+        with m.open_bags(self.paths) as reader:
             conns = [c for c in reader.connections if c.topic == topic and c.msgtype == msgtype]
             for conn, _, raw in reader.messages(connections=conns):
                 return m.as_image(raw, msgtype) if msgtype in m.IMAGE_TYPES else m.deserialize(raw, msgtype)
@@ -210,7 +209,7 @@ class BagProvider:
         stamps = collections.defaultdict(list)
         times = collections.defaultdict(list)
         topic_of = {t: r for r, t in self.topics.items()}
-        with Reader(self.path) as reader:
+        with m.open_bags(self.paths) as reader:
             conns = [c for c in reader.connections if c.topic in topic_of]
             for conn, t, raw in reader.messages(connections=conns):
                 stamps[topic_of[conn.topic]].append(m.header_stamp(raw))
@@ -334,7 +333,7 @@ class BagProvider:
 
     def _restart(self) -> None:
         self.close()
-        self._reader = Reader(self.path)
+        self._reader = m.open_bags(self.paths)
         self._reader.open()
         self._role_of = {t: r for r, t in self.topics.items()}
         conns = [c for c in self._reader.connections if c.topic in self._role_of]

@@ -18,7 +18,7 @@ from dynaorb.runner import RunOptions, run_dataset
 
 @dataclasses.dataclass
 class BagRunOptions:
-    bag: str
+    bag: object                        # a bag path, or the parts of a split recording (a list, read as one)
     config: str | None = None          # settings YAML (default: BAG-stem.settings.yaml)
     sensor: str | None = None          # default: the richest the bag's topics allow
     topics: dict | None = None         # role -> topic (image, right, depth, labels)
@@ -48,13 +48,13 @@ def run_bag(opts: BagRunOptions) -> dict:
                            use_labels=opts.use_labels and not opts.segment,
                            ground_truth_topic=opts.ground_truth_topic, ground_truth_tf=opts.ground_truth_tf)
     try:
-        stats = run_dataset(RunOptions(kind="bag", path=str(opts.bag), sensor=provider.sensor, out=opts.out,
+        stats = run_dataset(RunOptions(kind="bag", path=str(provider.path), sensor=provider.sensor, out=opts.out,
                                        dynamic=opts.dynamic, vocabulary=opts.vocabulary, progress=opts.progress,
                                        synchronous_mapping=opts.synchronous_mapping, save_map=opts.save_map,
                                        segment=opts.segment, segment_mode=opts.segment_mode, provider=provider))
     finally:
         provider.close()
-    stats["bag"] = {"topics": provider.topics, "frames": len(provider)}
+    stats["bag"] = {"files": [str(p) for p in provider.paths], "topics": provider.topics, "frames": len(provider)}
     if provider.settings_from_camera_info:
         # The settings the run used, for a rerun with --config.
         (pathlib.Path(opts.out) / "settings.camera_info.yaml").write_text(provider.settings_yaml)

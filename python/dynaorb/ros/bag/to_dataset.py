@@ -46,7 +46,7 @@ TUM_MAX_DT = 0.02  # s: how far apart the TUM reader (io/tum_dataset.cc) pairs c
 
 @dataclasses.dataclass
 class BagToDatasetOptions:
-    bag: str
+    bag: object                            # a bag path, or the parts of a split recording (a list, read as one)
     out: str
     config: str | None = None              # settings YAML (default: BAG-stem.settings.yaml, else camera_info)
     sensor: str | None = None              # default: the richest the bag's topics allow
@@ -128,10 +128,11 @@ def bag_to_dataset(opts: BagToDatasetOptions) -> dict:
 
 
 def _convert(opts: BagToDatasetOptions, provider: BagProvider, _core) -> dict:
+    names = ", ".join(p.name for p in provider.paths)
     for w in provider.warnings:
-        log.warning("%s: %s", opts.bag, w)
+        log.warning("%s: %s", provider.path, w)
     if len(provider) == 0:
-        raise ValueError(f"{opts.bag}: no frames to write")
+        raise ValueError(f"{names}: no frames to write")
     sensor, settings = provider.sensor, provider.default_settings()
     root = pathlib.Path(opts.out)
     _prepare(root, opts.overwrite)
@@ -152,7 +153,7 @@ def _convert(opts: BagToDatasetOptions, provider: BagProvider, _core) -> dict:
     if opts.progress:
         from tqdm import tqdm
 
-        indices = tqdm(indices, desc=f"dataset {pathlib.Path(opts.bag).name}", unit="frame")
+        indices = tqdm(indices, desc=f"dataset {names}", unit="frame")
     for i in indices:
         try:
             stamp, msgs = provider.load_messages(i)
@@ -183,7 +184,7 @@ def _convert(opts: BagToDatasetOptions, provider: BagProvider, _core) -> dict:
         stamps.append(stamp)
         counts["frames"] += 1
     if counts["frames"] == 0:
-        raise ValueError(f"{opts.bag}: none of its {len(provider)} frames could be read")
+        raise ValueError(f"{names}: none of its {len(provider)} frames could be read")
     if counts["depth_too_far"]:
         log.warning("%d depth pixels beyond %.2f m (16 bits at DepthMapFactor %g) written as no depth",
                     counts["depth_too_far"], 65535 / factor, factor)
@@ -198,7 +199,7 @@ def _convert(opts: BagToDatasetOptions, provider: BagProvider, _core) -> dict:
     files = {"sequence": str(seq)}
     settings.save(str(seq / "settings.yaml"))
     files["settings"] = str(seq / "settings.yaml")
-    source = f"# file: '{pathlib.Path(opts.bag).name}' (dynaorb bag to-dataset)\n# timestamp filename\n"
+    source = f"# file: '{names}' (dynaorb bag to-dataset)\n# timestamp filename\n"
     if tum:
         for role, list_name in (("image", "rgb.txt"), ("depth", "depth.txt")):
             kind = "color" if role == "image" else "depth"
@@ -237,6 +238,6 @@ def _convert(opts: BagToDatasetOptions, provider: BagProvider, _core) -> dict:
     command = ["dynaorb", "run", kind, str(seq)] + ([] if sensor in ("rgbd", "stereo") else ["--sensor", sensor])
     if counts["labels"]:
         command += ["--labels", str(seq / "labels")]
-    return {"bag": str(opts.bag), "layout": kind, "sensor": sensor, "topics": dict(provider.topics),
+    return {"bag": [str(p) for p in provider.paths], "layout": kind, "sensor": sensor, "topics": dict(provider.topics),
             "settings_from_camera_info": provider.settings_from_camera_info, **counts,
             "ground_truth": gt, "files": files, "run": " ".join(command)}
