@@ -293,3 +293,25 @@ def test_split_recording_runs_as_one_bag(tmp_path, synth_rgbd, capsys):
     assert b["ate"]["rmse"] == pytest.approx(a["ate"]["rmse"], abs=1e-12)
     with pytest.raises(FileNotFoundError, match="missing.bag"):
         BagProvider([parts[0], tmp_path / "missing.bag"])
+
+
+def test_bag_info(tmp_path, synth_stereo, capsys):
+    bag = tmp_path / "s.bag"
+    write_dataset_bag(BagWriteOptions(kind="kitti", path=str(synth_stereo / "sequences" / "00"), out=str(bag)))
+    assert main(["bag", "info", str(bag), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["topics"]["/camera/left/image_rect"] == {"type": m.IMAGE, "messages": 6}
+    seq = info["sequence"]
+    assert seq["sensor"] == "stereo" and seq["frames"] == 6 and seq["ground_truth_poses"] == 6
+    assert seq["rate_hz"] == pytest.approx(20.0, rel=1e-3)
+    assert seq["topics"] == {"image": "/camera/left/image_rect", "right": "/camera/right/image_rect"}
+    assert main(["bag", "info", str(bag)]) == 0
+    assert "sequence: stereo, 6 frames at 20.0 Hz" in capsys.readouterr().out
+    odd = tmp_path / "odd.bag"
+    write_images(odd, ["mono8", "mono8"])
+    assert main(["bag", "info", str(odd)]) == 0  # topics listed; why it is no sequence said
+    out = capsys.readouterr().out
+    assert "/camera/image_raw" in out and "not readable as a sequence" in out and "no settings" in out
+    config = pathlib.Path(__file__).resolve().parents[2] / "config" / "EuRoC_mono.yaml"
+    assert main(["bag", "info", str(odd), "--config", str(config)]) == 0
+    assert "--topic image=TOPIC" in capsys.readouterr().out

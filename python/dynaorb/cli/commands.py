@@ -318,6 +318,22 @@ def cmd_bag_run(args) -> int:
     return 0
 
 
+def _provider_options(args) -> dict:
+    return dict(settings=args.config, sensor=args.sensor, topics=_topics(args), max_diff=args.max_diff,
+                ground_truth=args.ground_truth, ground_truth_topic=args.ground_truth_topic,
+                ground_truth_tf=_ground_truth_tf(args), use_labels=not args.no_labels)
+
+
+def cmd_bag_info(args) -> int:
+    import json
+
+    from dynaorb.ros.bag.info import bag_info, format_info
+
+    info = bag_info(args.bag, **_provider_options(args))
+    print(json.dumps(info, indent=2) if args.json else format_info(info))
+    return 0
+
+
 def cmd_bag_to_dataset(args) -> int:
     from dynaorb.ros.bag import BagToDatasetOptions, bag_to_dataset
 

@@ -275,6 +275,12 @@ def build_parser() -> argparse.ArgumentParser:
                          "sync: every frame waits for its own")
     br.add_argument("--quiet", action="store_true")
     br.set_defaults(func=commands.cmd_bag_run)
+    bi = bsub.add_parser("info", help="what a bag holds and what `bag run` would take from it (topics by role, "
+                                      "sensor, frames, settings, ground truth)")
+    bi.add_argument("bag", nargs="+", help="a bag, or the parts of a split recording (read as one)")
+    _bag_input_args(bi)
+    bi.add_argument("--json", action="store_true", help="print it as JSON")
+    bi.set_defaults(func=commands.cmd_bag_info)
     bt = bsub.add_parser("to-dataset", help="write a bag's frames as a dataset folder: RGB-D in TUM's layout, "
                                             "stereo and mono in KITTI's, with settings and ground truth")
     bt.add_argument("bag", nargs="+", help="a bag, or the parts of a split recording (read as one)")
