@@ -10,7 +10,7 @@ import numpy as np
 import rospy
 import rostest
 from cv_bridge import CvBridge
-from sensor_msgs.msg import Image
+from sensor_msgs.msg import CompressedImage, Image
 
 from dynaorb.srv import Segment
 
@@ -72,6 +72,34 @@ class SegmentationServerTest(unittest.TestCase):
             pub.publish(self.image_msg(stamp))
             done.wait(1.0)
         self.assertTrue(got, "no labels published")
+        self.check_labels(got[0], stamp)
+
+    def test_compressed_topic(self):
+        # ~image_transport compressed: JPEG on /camera/rgb/image_color/compressed (the node's
+        # image remapped to /camera/rgb/image_color); undecodable data is skipped, not fatal.
+        got = []
+        done = threading.Event()
+
+        def on_labels(msg):
+            got.append(msg)
+            done.set()
+
+        rospy.Subscriber("/compressed/labels", Image, on_labels)
+        pub = rospy.Publisher("/camera/rgb/image_color/compressed", CompressedImage, queue_size=1)
+        deadline = time.time() + 60
+        while pub.get_num_connections() == 0 and time.time() < deadline:
+            time.sleep(0.05)
+        junk = CompressedImage(format="jpeg", data=bytes(32))
+        junk.header.stamp = rospy.Time.from_sec(1.0)
+        pub.publish(junk)
+        stamp = 1341846313.6
+        msg = CompressedImage(format="bgr8; jpeg compressed bgr8", data=cv2.imencode(".jpg", self.image)[1].tobytes())
+        msg.header.stamp = rospy.Time.from_sec(stamp)
+        msg.header.frame_id = "camera_rgb_optical_frame"
+        while not done.is_set() and time.time() < deadline:
+            pub.publish(msg)
+            done.wait(1.0)
+        self.assertTrue(got, "no labels published from the compressed topic")
         self.check_labels(got[0], stamp)
 
     def test_runs_below_the_slam_nodes_priority(self):
