@@ -8,12 +8,13 @@ rectified images for KITTI, and EuRoC's /cam0/image_raw, /cam1/image_raw.
 from __future__ import annotations
 
 import dataclasses
+import heapq
 import pathlib
 import struct
 
 import cv2
 import numpy as np
-from rosbags.highlevel import AnyReader
+from rosbags.rosbag1 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 TYPESTORE = get_typestore(Stores.ROS1_NOETIC)
@@ -75,9 +76,64 @@ def bag_paths(bags) -> list[pathlib.Path]:
     return paths
 
 
-def open_bags(bags) -> AnyReader:
-    """A reader over the bags as one, messages in time order (call open() or use `with`)."""
-    return AnyReader(bag_paths(bags), default_typestore=TYPESTORE)
+class Bags:
+    """ROS 1 bags read as one (the parts of a split recording): their
+    connections together, their messages merged in time order as raw bytes.
+    Use `with`, or open() and close(). (rosbags' AnyReader would also check
+    each type's definition against its digest and take only names ending in
+    .bag; a bag the plain reader reads is read here.)"""
+
+    def __init__(self, bags):
+        self.paths = bag_paths(bags)
+        self.readers = [Reader(p) for p in self.paths]
+        self.connections = []
+
+    def open(self) -> None:
+        try:
+            for r in self.readers:
+                r.open()
+        except Exception:
+            self.close()
+            raise
+        self.connections = [c for r in self.readers for c in r.connections]
+
+    def close(self) -> None:
+        for r in self.readers:
+            try:
+                r.close()
+            except Exception:  # one never opened
+                pass
+
+    def __enter__(self) -> "Bags":
+        self.open()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    @property
+    def start_time(self) -> int:
+        return min(r.start_time for r in self.readers)
+
+    @property
+    def end_time(self) -> int:
+        return max(r.end_time for r in self.readers)
+
+    def messages(self, connections=None):
+        """(connection, bag time ns, raw bytes) of the connections given (default
+        all), in time order across the bags."""
+        wanted = None if connections is None else {id(c) for c in connections}
+        streams = []
+        for r in self.readers:
+            conns = [c for c in r.connections if wanted is None or id(c) in wanted]
+            if conns:
+                streams.append(r.messages(connections=conns))
+        return heapq.merge(*streams, key=lambda item: item[1])
+
+
+def open_bags(bags) -> Bags:
+    """The bags as one reader (call open() or use `with`)."""
+    return Bags(bags)
 
 
 def stamp_ns(stamp: float) -> int:
