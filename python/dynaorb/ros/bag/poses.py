@@ -8,7 +8,6 @@ arm between the two).
 """
 from __future__ import annotations
 
-import pathlib
 
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
