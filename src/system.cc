@@ -178,7 +178,7 @@ struct System::Impl {
     tracker->set_localization_mode(options.localization_only);
     if (dynamic_on()) {
       filter = std::make_unique<dynamic::DynamicFilter>(options.dynamic, sensor, calib);
-      overlap_extraction = options.dynamic.overlaps_extraction(std::thread::hardware_concurrency());
+      overlap_extraction = options.dynamic.overlaps_extraction(std::thread::hardware_concurrency(), sensor);
     }
   }
 

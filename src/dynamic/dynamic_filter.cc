@@ -235,9 +235,9 @@ DynamicFilterOptions DynamicFilterOptions::parse(const std::string& yaml, const 
   return from_storage(fs, source);
 }
 
-bool DynamicFilterOptions::overlaps_extraction(unsigned hardware_threads) const {
+bool DynamicFilterOptions::overlaps_extraction(unsigned hardware_threads, Sensor sensor) const {
   if (overlap_extraction >= 0) return overlap_extraction == 1;
-  return hardware_threads >= 4u;
+  return sensor == Sensor::kStereo || hardware_threads >= 4u;
 }
 
 const std::vector<std::string>& DynamicFilterOptions::stages_for(Sensor sensor) const {

@@ -59,16 +59,30 @@ struct DynamicFilterOptions {
   // worker thread detects the frame's ORB corners (OrbExtractor::detect; the
   // filter's mask only decides which of them are kept and described, so the
   // features are the same). 1: always; 0: never (the filter, then the
-  // extraction); -1 (auto): with at least 4 hardware threads. On 2 cores the
-  // second one is taken already: by the next frame's motion-cue corners
-  // (MotionCueCache::ahead), local mapping, the network, and for stereo the
-  // right image (FrameBuilder's HelperThread). There, `full` with asynchronous
+  // extraction); -1 (auto): for stereo always, for mono and RGB-D with at
+  // least 4 hardware threads.
+  // Stereo detects both images on the FrameBuilder's helper thread (the
+  // right image first), beside the filter; the helper then describes the
+  // right image while the tracking thread describes the left. KITTI 06 `full`
+  // with the network (dm05) and asynchronous mapping, 3 + 3 interleaved runs,
+  // track call medians without -> with: paced 20.13 -> 18.76 ms (with the
+  // labels' time 21.93 -> 20.66), unpaced 22.79 -> 21.71 (25.58 -> 24.22);
+  // the synthetic stereo sequence with movers (seed 0, label images) paced
+  // 16.33 -> 14.41, unpaced 18.58 -> 17.39; every one of the 12 run pairs
+  // faster. The filter itself takes 0.5-1.5 ms longer beside the detection;
+  // the extraction after it 7.4 -> 5.4 ms (KITTI), 5.1 -> 2.4 (synthetic).
+  // Synchronous runs give the same trajectories either way. (Stereo's earlier
+  // overlap, both detections on a thread of their own, was slower: KITTI
+  // paced 20.05 -> 22.8 ms.) Mono and RGB-D on 2 cores: the second core is
+  // taken already, by the next frame's motion-cue corners
+  // (MotionCueCache::ahead), local mapping and the network; their detection
+  // on a thread of its own. There, `full` with asynchronous
   // mapping, overlapped against not (medians of interleaved runs, track
   // call): synthetic RGB-D with movers 19.4 against 18.6 ms (8 + 8), without
   // 13.8 against 13.0 (6 + 6); synthetic mono with movers 16.0 against 15.9
   // (8 + 8), without 14.0 against 12.7 (6 + 6); EuRoC MH_05 mono with the
-  // network 15.4 against 14.2 (4 + 4); stereo 27.5 against 27.2 (5 + 5);
-  // the filter alone 12.2 -> 9.3 ms (RGB-D) and 8.4 -> 6.3 ms (mono), as the
+  // network 15.4 against 14.2 (4 + 4); stereo (its own thread) 27.5
+  // against 27.2 (5 + 5); the filter alone 12.2 -> 9.3 ms (RGB-D) and 8.4 -> 6.3 ms (mono), as the
   // detection no longer shares its core. Before the motion cues' worker (3
   // runs each) the overlap had gained 36.3 -> 33.0 ms (mono) and 38.0 ->
   // 34.4 ms (RGB-D). Paced as well (`--realtime`, the cores idle between
@@ -76,7 +90,7 @@ struct DynamicFilterOptions {
   // 8.2-12.0 not (5 + 5 interleaved runs, ATE the same). On 4 or more
   // cores: not measured here.
   int overlap_extraction = -1;
-  bool overlaps_extraction(unsigned hardware_threads) const;
+  bool overlaps_extraction(unsigned hardware_threads, Sensor sensor) const;
 
   // Reads a preset file (the `%YAML:1.0` first line may be left out);
   // InputError naming the file and the key for a missing

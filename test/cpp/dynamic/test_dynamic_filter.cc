@@ -174,21 +174,27 @@ TEST(DynamicFilterOptions, MotionCuesPerSensor) {
                        "unknown option 'Dynamic.motion_cues.forward_backward_max_rgbd'"));
 }
 
-// Dynamic.overlap_extraction: -1 (auto, the default) by hardware threads, 0
-// never, 1 always; anything else is refused by name.
+// Dynamic.overlap_extraction: -1 (auto, the default) always for stereo, by
+// hardware threads for mono and RGB-D; 0 never, 1 always; anything else is
+// refused by name.
 TEST(DynamicFilterOptions, OverlapExtraction) {
   const DynamicFilterOptions o = DynamicFilterOptions::parse("Dynamic.stages: [semantic]\n", "k");
   EXPECT_EQ(o.overlap_extraction, -1);
-  EXPECT_FALSE(o.overlaps_extraction(1));
-  EXPECT_FALSE(o.overlaps_extraction(2));
-  EXPECT_FALSE(o.overlaps_extraction(3));
-  EXPECT_TRUE(o.overlaps_extraction(4));
+  for (Sensor s : {Sensor::kMono, Sensor::kRGBD}) {
+    EXPECT_FALSE(o.overlaps_extraction(1, s));
+    EXPECT_FALSE(o.overlaps_extraction(2, s));
+    EXPECT_FALSE(o.overlaps_extraction(3, s));
+    EXPECT_TRUE(o.overlaps_extraction(4, s));
+  }
+  EXPECT_TRUE(o.overlaps_extraction(2, Sensor::kStereo));
+  EXPECT_TRUE(o.overlaps_extraction(1, Sensor::kStereo));
   const DynamicFilterOptions on =
       DynamicFilterOptions::parse("Dynamic.stages: [semantic]\nDynamic.overlap_extraction: 1\n", "k");
-  EXPECT_TRUE(on.overlaps_extraction(1));
+  EXPECT_TRUE(on.overlaps_extraction(1, Sensor::kMono));
   const DynamicFilterOptions off =
       DynamicFilterOptions::parse("Dynamic.stages: [semantic]\nDynamic.overlap_extraction: 0\n", "k");
-  EXPECT_FALSE(off.overlaps_extraction(16));
+  EXPECT_FALSE(off.overlaps_extraction(16, Sensor::kRGBD));
+  EXPECT_FALSE(off.overlaps_extraction(2, Sensor::kStereo));
   for (const char* bad : {"2", "-2", "yes", "0.5"})
     EXPECT_TRUE(contains(error_of(std::string("Dynamic.stages: []\nDynamic.overlap_extraction: ") + bad + "\n"),
                          "Dynamic.overlap_extraction"))
