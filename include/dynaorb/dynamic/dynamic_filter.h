@@ -61,19 +61,24 @@ struct DynamicFilterOptions {
   // features are the same). 1: always; 0: never (the filter, then the
   // extraction); -1 (auto): for stereo always, for mono and RGB-D with at
   // least 4 hardware threads.
-  // Stereo detects both images on the FrameBuilder's helper thread (the
-  // right image first), beside the filter; the helper then describes the
-  // right image while the tracking thread describes the left. KITTI 06 `full`
-  // with the network (dm05) and asynchronous mapping, 3 + 3 interleaved runs,
-  // track call medians without -> with: paced 20.13 -> 18.76 ms (with the
-  // labels' time 21.93 -> 20.66), unpaced 22.79 -> 21.71 (25.58 -> 24.22);
-  // the synthetic stereo sequence with movers (seed 0, label images) paced
-  // 16.33 -> 14.41, unpaced 18.58 -> 17.39; every one of the 12 run pairs
-  // faster. The filter itself takes 0.5-1.5 ms longer beside the detection;
-  // the extraction after it 7.4 -> 5.4 ms (KITTI), 5.1 -> 2.4 (synthetic).
-  // Synchronous runs give the same trajectories either way. (Stereo's earlier
-  // overlap, both detections on a thread of their own, was slower: KITTI
-  // paced 20.05 -> 22.8 ms.) Mono and RGB-D on 2 cores: the second core is
+  // Stereo detects the right image on the FrameBuilder's helper thread beside
+  // the filter, and the left one after it there too unless the filter ends
+  // first (then here); the helper then describes the right image while the
+  // tracking thread describes the left. `full`, asynchronous mapping, 3 + 3
+  // interleaved runs, track call medians without -> with: KITTI 06 with the
+  // network (dm05) paced 20.64 -> 19.08 ms (with the labels' time 23.03 ->
+  // 20.90), unpaced 23.23 -> 21.42 (26.04 -> 23.81); the synthetic stereo
+  // sequence with movers (seed 0, label images) paced 16.07 -> 14.35,
+  // unpaced 17.92 -> 15.76; EuRoC V1_01 (the filter 0.2 ms: nothing to
+  // decide) 13.22 -> 12.32; every one of the 15 run pairs faster. The filter
+  // itself takes 0.5-1.5 ms longer beside the detection, the extraction after
+  // it 7.6 -> 5.7 ms (KITTI), 5.0 -> 2.4 (synthetic). Synchronous runs give
+  // the same trajectories either way; paced, the ATE stays (KITTI 0.053-0.055
+  // m, synthetic 3.0-3.1 mm); unpaced, where local mapping gets only the wall
+  // time of the track calls, it rises with the faster tracking (KITTI
+  // 0.037-0.046 -> 0.041-0.052 m, synthetic 3.1-3.8 -> 4.1-5.2 mm). (Stereo's
+  // earlier overlap, both detections on a thread of their own, was slower:
+  // KITTI paced 20.05 -> 22.8 ms.) Mono and RGB-D on 2 cores: the second core is
   // taken already, by the next frame's motion-cue corners
   // (MotionCueCache::ahead), local mapping and the network; their detection
   // on a thread of its own. There, `full` with asynchronous
