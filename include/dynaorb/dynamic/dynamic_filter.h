@@ -78,17 +78,17 @@ struct DynamicFilterOptions {
   // time of the track calls, it rises with the faster tracking (KITTI
   // 0.037-0.046 -> 0.041-0.052 m, synthetic 3.1-3.8 -> 4.1-5.2 mm). (Stereo's
   // earlier overlap, both detections on a thread of their own, was slower:
-  // KITTI paced 20.05 -> 22.8 ms.) Mono and RGB-D on 2 cores: the second core is
-  // taken already, by the next frame's motion-cue corners
-  // (MotionCueCache::ahead), local mapping and the network; their detection
-  // on a thread of its own. There, `full` with asynchronous
-  // mapping, overlapped against not (medians of interleaved runs, track
-  // call): synthetic RGB-D with movers 19.4 against 18.6 ms (8 + 8), without
-  // 13.8 against 13.0 (6 + 6); synthetic mono with movers 16.0 against 15.9
-  // (8 + 8), without 14.0 against 12.7 (6 + 6); EuRoC MH_05 mono with the
-  // network 15.4 against 14.2 (4 + 4); stereo (its own thread) 27.5
-  // against 27.2 (5 + 5); the filter alone 12.2 -> 9.3 ms (RGB-D) and 8.4 -> 6.3 ms (mono), as the
-  // detection no longer shares its core. Before the motion cues' worker (3
+  // KITTI paced 20.05 -> 22.8 ms.)
+  // Mono and RGB-D on 2 cores: the second core is taken already, by the next
+  // frame's motion-cue corners (MotionCueCache::ahead), local mapping and the
+  // network; their detection runs on a thread of its own. There, `full` with
+  // asynchronous mapping, overlapped against not (medians of interleaved
+  // runs, track call): synthetic RGB-D with movers 19.4 against 18.6 ms
+  // (8 + 8), without 13.8 against 13.0 (6 + 6); synthetic mono with movers
+  // 16.0 against 15.9 (8 + 8), without 14.0 against 12.7 (6 + 6); EuRoC MH_05
+  // mono with the network 15.4 against 14.2 (4 + 4); stereo (its own thread
+  // then) 27.5 against 27.2 (5 + 5); the filter alone 12.2 -> 9.3 ms (RGB-D)
+  // and 8.4 -> 6.3 ms (mono), as the detection no longer shares its core. Before the motion cues' worker (3
   // runs each) the overlap had gained 36.3 -> 33.0 ms (mono) and 38.0 ->
   // 34.4 ms (RGB-D). Paced as well (`--realtime`, the cores idle between
   // frames): synthetic mono with movers 10.3-12.5 ms overlapped against
