@@ -286,6 +286,21 @@ def decompress(msg):
                   is_bigendian=0, step=image.step, data=image.data)
 
 
+_TO_BGR = {"rgb8": cv2.COLOR_RGB2BGR, "rgba8": cv2.COLOR_RGBA2BGR, "bgra8": cv2.COLOR_BGRA2BGR}
+_GREY = ("mono8", "8UC1", "mono16", "16UC1")
+
+
+def image_for_file(msg) -> np.ndarray:
+    """An Image message as cv2.imwrite / imencode take it: colour in BGR order,
+    grey as it is. ValueError for an encoding that is not an image's (32FC1)."""
+    a = image_array(msg)
+    if msg.encoding in _GREY or msg.encoding == "bgr8":
+        return a
+    if msg.encoding in _TO_BGR:
+        return cv2.cvtColor(a, _TO_BGR[msg.encoding])
+    raise ValueError(f"image encoding {msg.encoding!r} is not an intensity image")
+
+
 def compress(msg, image_format: str = "png", depth_quantization: float = 100.0, depth_max: float = 10.0):
     """The CompressedImage image_transport makes of an Image: its compressed
     transport (jpeg or png; colour as bgr8) for intensity images, its
@@ -295,8 +310,8 @@ def compress(msg, image_format: str = "png", depth_quantization: float = 100.0, 
     depth_max) as compressed_depth_image_transport's defaults."""
     if image_format not in ("png", "jpeg"):
         raise ValueError(f"image format must be png or jpeg, not {image_format!r}")
-    a = image_array(msg)
     if msg.encoding in ("16UC1", "32FC1"):
+        a = image_array(msg)
         if msg.encoding == "16UC1":
             head, q = struct.pack("<iff", 0, 0.0, 0.0), a
         else:
@@ -308,8 +323,7 @@ def compress(msg, image_format: str = "png", depth_quantization: float = 100.0, 
             head = struct.pack("<iff", 0, qa, qb)
         fmt, data = f"{msg.encoding}; compressedDepth png", head + cv2.imencode(".png", q)[1].tobytes()
     else:
-        to_bgr = {"rgb8": cv2.COLOR_RGB2BGR, "rgba8": cv2.COLOR_RGBA2BGR, "bgra8": cv2.COLOR_BGRA2BGR}
-        image = cv2.cvtColor(a, to_bgr[msg.encoding]) if msg.encoding in to_bgr else a
+        image = image_for_file(msg)
         packed = "bgr8" if image.ndim == 3 else msg.encoding
         ok, buf = cv2.imencode(".jpg" if image_format == "jpeg" else ".png", image)
         if not ok:

@@ -39,8 +39,6 @@ from dynaorb.ros.bag.read import BagProvider
 
 log = logging.getLogger(__name__)
 
-_BGR = {"rgb8": cv2.COLOR_RGB2BGR, "rgba8": cv2.COLOR_RGBA2BGR, "bgra8": cv2.COLOR_BGRA2BGR}
-_GREY = ("mono8", "8UC1", "mono16", "16UC1")
 TUM_MAX_DT = 0.02  # s: how far apart the TUM reader (io/tum_dataset.cc) pairs colour and depth
 
 
@@ -59,17 +57,6 @@ class BagToDatasetOptions:
     use_labels: bool = True
     overwrite: bool = False
     progress: bool = False
-
-
-def image_for_file(msg) -> np.ndarray:
-    """An Image message as cv2.imwrite takes it: colour in BGR order, grey as it is.
-    ValueError for an encoding that is not an image's (32FC1)."""
-    a = m.image_array(msg)
-    if msg.encoding in _GREY or msg.encoding == "bgr8":
-        return a
-    if msg.encoding in _BGR:
-        return cv2.cvtColor(a, _BGR[msg.encoding])
-    raise ValueError(f"image encoding {msg.encoding!r} is not an intensity image")
 
 
 def depth_for_file(msg, depth_map_factor: float) -> tuple[np.ndarray, int]:
@@ -158,9 +145,9 @@ def _convert(opts: BagToDatasetOptions, provider: BagProvider, _core) -> dict:
         try:
             stamp, msgs = provider.load_messages(i)
             name = f"{stamp:.6f}.png" if tum else f"{counts['frames']:06d}.png"
-            files = {"image": image_for_file(msgs["image"])}
+            files = {"image": m.image_for_file(msgs["image"])}
             if "right" in msgs:
-                files["right"] = image_for_file(msgs["right"])
+                files["right"] = m.image_for_file(msgs["right"])
             if "depth" in msgs:
                 files["depth"], too_far = depth_for_file(msgs["depth"], factor)
             labels = m.image_array(msgs["labels"]) if "labels" in msgs else None
