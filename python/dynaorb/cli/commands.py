@@ -304,24 +304,24 @@ def _ground_truth_tf(args) -> tuple[str, str] | None:
     return parent, child
 
 
+def _bag_inputs(args) -> dict:
+    """What main._bag_input_args reads, by the names BagRunOptions, BagToDatasetOptions and bag_info take."""
+    return dict(config=args.config, sensor=args.sensor, topics=_topics(args), max_diff=args.max_diff,
+                ground_truth=args.ground_truth, ground_truth_topic=args.ground_truth_topic,
+                ground_truth_tf=_ground_truth_tf(args), use_labels=not args.no_labels)
+
+
 def cmd_bag_run(args) -> int:
     from dynaorb.ros.bag import BagRunOptions, run_bag
 
-    stats = run_bag(BagRunOptions(bag=args.bag, config=args.config, sensor=args.sensor, topics=_topics(args),
-                                  out=args.out, ground_truth=args.ground_truth,
-                                  ground_truth_topic=args.ground_truth_topic,
-                                  ground_truth_tf=_ground_truth_tf(args), use_labels=not args.no_labels,
-                                  max_diff=args.max_diff, vocabulary=args.vocabulary, dynamic=args.dynamic,
+    stats = run_bag(BagRunOptions(bag=args.bag, **_bag_inputs(args), out=args.out,
+                                  vocabulary=args.vocabulary, dynamic=args.dynamic,
                                   synchronous_mapping=not args.async_mapping, save_map=args.save_map,
                                   segment=args.segment, segment_mode=args.segment_mode, progress=not args.quiet))
     print(summary_line(args.out, stats))
     return 0
 
 
-def _provider_options(args) -> dict:
-    return dict(settings=args.config, sensor=args.sensor, topics=_topics(args), max_diff=args.max_diff,
-                ground_truth=args.ground_truth, ground_truth_topic=args.ground_truth_topic,
-                ground_truth_tf=_ground_truth_tf(args), use_labels=not args.no_labels)
 
 
 def cmd_bag_info(args) -> int:
@@ -329,7 +329,7 @@ def cmd_bag_info(args) -> int:
 
     from dynaorb.ros.bag.info import bag_info, format_info
 
-    info = bag_info(args.bag, **_provider_options(args))
+    info = bag_info(args.bag, **_bag_inputs(args))
     print(json.dumps(info, indent=2) if args.json else format_info(info))
     return 0
 
@@ -337,12 +337,8 @@ def cmd_bag_info(args) -> int:
 def cmd_bag_to_dataset(args) -> int:
     from dynaorb.ros.bag import BagToDatasetOptions, bag_to_dataset
 
-    s = bag_to_dataset(BagToDatasetOptions(bag=args.bag, out=args.output, config=args.config, sensor=args.sensor,
-                                           topics=_topics(args), max_diff=args.max_diff,
-                                           ground_truth=args.ground_truth, ground_truth_topic=args.ground_truth_topic,
-                                           ground_truth_tf=_ground_truth_tf(args),
-                                           ground_truth_max_gap=args.ground_truth_max_gap,
-                                           use_labels=not args.no_labels, overwrite=args.overwrite,
+    s = bag_to_dataset(BagToDatasetOptions(bag=args.bag, out=args.output, **_bag_inputs(args),
+                                           ground_truth_max_gap=args.ground_truth_max_gap, overwrite=args.overwrite,
                                            progress=not args.quiet))
     gt = s["ground_truth"]
     extra = [f"{s['labels']} label images"] if s["labels"] else []

@@ -10,10 +10,11 @@ from dynaorb.ros.bag.poses import POSE_TYPES
 from dynaorb.ros.bag.read import BagProvider
 
 
-def bag_info(bags, **provider_options) -> dict:
+def bag_info(bags, config=None, **provider_options) -> dict:
     """Topics with their types, counts and time spans; then, when the bag can
     be read as a sequence, the provider's choice (roles, sensor, frames, rate,
-    settings source, ground truth); otherwise the reason it cannot."""
+    settings source, ground truth); otherwise the reason it cannot. config:
+    a settings YAML, as `bag run --config`; the rest as BagProvider takes them."""
     paths = m.bag_paths(bags)
     topics = collections.OrderedDict()
     with m.open_bags(paths) as reader:
@@ -26,7 +27,7 @@ def bag_info(bags, **provider_options) -> dict:
     out["pose_topics"] = [name for name, t in topics.items() if t["type"] in POSE_TYPES]
     out["tf_topics"] = [name for name, t in topics.items() if t["type"] in m.TF_TYPES]
     try:
-        provider = BagProvider(paths, **provider_options)
+        provider = BagProvider(paths, settings=config, **provider_options)
     except (ValueError, FileNotFoundError) as exc:
         out["sequence"] = {"error": str(exc)}
         return out
