@@ -2,6 +2,7 @@
 a bag's camera_info; ground truth from a pose topic."""
 from __future__ import annotations
 
+import dataclasses
 import pathlib
 import shutil
 
@@ -34,6 +35,30 @@ def without_sidecars(bag: pathlib.Path, tmp_path: pathlib.Path) -> pathlib.Path:
     bare.parent.mkdir()
     shutil.copy(bag, bare)
     return bare
+
+
+def pinhole_info(stamp: float, width: int, height: int, f: float = 80.0):
+    """A plumb_bob CameraInfo without distortion, principal point at the centre."""
+    K = np.array([[f, 0, (width - 1) / 2], [0, f, (height - 1) / 2], [0, 0, 1]])
+    return m.camera_info_msg(stamp, "cam", width, height, K, np.zeros(5), np.hstack([K, np.zeros((3, 1))]))
+
+
+def write_rgbd_bag(path: pathlib.Path, times, depth_delays, depth_m: float, stamped: bool = True) -> None:
+    """A TUM-topic RGB-D bag of 64x48 frames recorded at `times` (grey level 60 + k), each
+    depth image `depth_delays[k]` s later at `depth_m` metres, with camera_info; headers
+    stamped with the record times, or left at zero (`stamped` False)."""
+    with Writer(path) as w:
+        rgb = w.add_connection("/camera/rgb/image_color", m.IMAGE, typestore=m.TYPESTORE)
+        depth = w.add_connection("/camera/depth/image", m.IMAGE, typestore=m.TYPESTORE)
+        info = w.add_connection("/camera/rgb/camera_info", m.CAMERA_INFO, typestore=m.TYPESTORE)
+        for k, (t, delay) in enumerate(zip(times, depth_delays)):
+            stamp = t if stamped else 0.0
+            image = np.full((48, 64, 3), 60 + k, np.uint8)
+            w.write(rgb, m.stamp_ns(t), m.serialize(m.image_msg(image, "rgb8", stamp, "c")))
+            w.write(info, m.stamp_ns(t), m.serialize(pinhole_info(stamp, 64, 48)))
+            d = t + delay
+            w.write(depth, m.stamp_ns(d), m.serialize(m.image_msg(np.full((48, 64), depth_m, np.float32), "32FC1",
+                                                                  d if stamped else 0.0, "c")))
 
 
 # ------------------------------------------------------------------ round trips
@@ -118,10 +143,7 @@ def test_camera_info_it_cannot_use_is_named(tmp_path):
         for k in range(3):
             t = 5.0 + 0.1 * k
             w.write(img, m.stamp_ns(t), m.serialize(m.image_msg(np.zeros((48, 64), np.uint8), "mono8", t, "cam")))
-            msg = m.camera_info_msg(t, "cam", 64, 48, np.diag([50.0, 50.0, 1.0]), np.zeros(4),
-                                    np.hstack([np.diag([50.0, 50.0, 1.0]), np.zeros((3, 1))]))
-            msg = type(msg)(**{**{f: getattr(msg, f) for f in msg.__dataclass_fields__},
-                               "distortion_model": "equidistant"})
+            msg = dataclasses.replace(pinhole_info(t, 64, 48, f=50.0), distortion_model="equidistant")
             w.write(info, m.stamp_ns(t), m.serialize(msg))
     with pytest.raises(ValueError, match="equidistant"):
         BagProvider(bag, topics={"image": "/cam/image_raw"})
@@ -163,23 +185,23 @@ def pose_message(msgtype: str, t: float):
     return types[msgtype](header=header, pose=with_cov)
 
 
-def mono_bag_with_poses(path: pathlib.Path, msgtype: str, first_pose: float = 0.0) -> np.ndarray:
+def mono_bag_with_poses(path: pathlib.Path, msgtype: str, first_pose: float = 0.0, topic: str = "/mocap/pose",
+                        message=None) -> np.ndarray:
     """10 grey frames at 10 Hz from t = 100.003 s (between pose samples), camera_info,
-    and poses at 100 Hz on /mocap/pose from 100 + first_pose s; returns the frame stamps."""
+    and poses at 100 Hz on `topic` from 100 + first_pose s (`message(msgtype, t)`,
+    default pose_message); returns the frame stamps."""
     stamps = 100.003 + np.arange(10) / FRAME_RATE
     rng = np.random.default_rng(0)
-    K = np.array([[80.0, 0, 63.5], [0, 80.0, 47.5], [0, 0, 1]])
     with Writer(path) as w:
         img = w.add_connection("/camera/image_raw", m.IMAGE, typestore=m.TYPESTORE)
         info = w.add_connection("/camera/camera_info", m.CAMERA_INFO, typestore=m.TYPESTORE)
-        pose = w.add_connection("/mocap/pose", msgtype, typestore=m.TYPESTORE)
+        pose = w.add_connection(topic, msgtype, typestore=m.TYPESTORE)
         for k, t in enumerate(stamps):
             image = rng.integers(0, 255, (96, 128), dtype=np.uint8)
             w.write(img, m.stamp_ns(t), m.serialize(m.image_msg(image, "mono8", t, "cam", k)))
-            w.write(info, m.stamp_ns(t), m.serialize(m.camera_info_msg(t, "cam", 128, 96, K, np.zeros(5),
-                                                                          np.hstack([K, np.zeros((3, 1))]))))
+            w.write(info, m.stamp_ns(t), m.serialize(pinhole_info(t, 128, 96)))
         for t in 100.0 + first_pose + np.arange(int(1.2 * POSE_RATE)) / POSE_RATE:
-            w.write(pose, m.stamp_ns(t), m.serialize(pose_message(msgtype, t)))
+            w.write(pose, m.stamp_ns(t), m.serialize((message or pose_message)(msgtype, t)))
     return stamps
 
 
@@ -271,18 +293,8 @@ def test_cli_to_dataset(tmp_path, synth_stereo, capsys):
 
 def test_pairs_further_apart_than_the_tum_reader_pairs_are_counted(tmp_path):
     bag = tmp_path / "late_depth.bag"
-    K = np.array([[80.0, 0, 31.5], [0, 80.0, 23.5], [0, 0, 1]])
-    with Writer(bag) as w:
-        rgb = w.add_connection("/camera/rgb/image_color", m.IMAGE, typestore=m.TYPESTORE)
-        depth = w.add_connection("/camera/depth/image", m.IMAGE, typestore=m.TYPESTORE)
-        info = w.add_connection("/camera/rgb/camera_info", m.CAMERA_INFO, typestore=m.TYPESTORE)
-        for k in range(4):
-            t = 50.0 + 0.1 * k
-            w.write(rgb, m.stamp_ns(t), m.serialize(m.image_msg(np.full((48, 64, 3), 90, np.uint8), "rgb8", t, "c")))
-            w.write(info, m.stamp_ns(t), m.serialize(m.camera_info_msg(t, "c", 64, 48, K, np.zeros(5),
-                                                                          np.hstack([K, np.zeros((3, 1))]))))
-            d = t + (0.03 if k % 2 else 0.01)  # every other depth image 30 ms late
-            w.write(depth, m.stamp_ns(d), m.serialize(m.image_msg(np.full((48, 64), 1.5, np.float32), "32FC1", d, "c")))
+    # Every other depth image 30 ms late.
+    write_rgbd_bag(bag, 50.0 + 0.1 * np.arange(4), [0.01, 0.03, 0.01, 0.03], depth_m=1.5)
     summary = bag_to_dataset(BagToDatasetOptions(bag=str(bag), out=str(tmp_path / "ds"), max_diff=0.05))
     assert summary["frames"] == 4 and summary["depth_pairs_beyond_tum"] == 2
     depth_png = cv2.imread(str(next((tmp_path / "ds" / "depth").iterdir())), cv2.IMREAD_UNCHANGED)
@@ -307,22 +319,8 @@ def tf_message(msgtype: str, t: float):
 
 @pytest.mark.parametrize("msgtype", m.TF_TYPES)
 def test_ground_truth_from_tf(tmp_path, msgtype):
-    bag = tmp_path / "tum_style.bag"
-    stamps = mono_bag_with_poses(bag, "geometry_msgs/msg/PoseStamped")
-    with Writer(tmp_path / "tf.bag") as w:  # the same frames with /tf instead of the pose topic
-        img = w.add_connection("/camera/image_raw", m.IMAGE, typestore=m.TYPESTORE)
-        info = w.add_connection("/camera/camera_info", m.CAMERA_INFO, typestore=m.TYPESTORE)
-        tf = w.add_connection("/tf", msgtype, typestore=m.TYPESTORE)
-        src = BagProvider(bag, topics={"image": "/camera/image_raw"})
-        K = np.array([[80.0, 0, 63.5], [0, 80.0, 47.5], [0, 0, 1]])
-        for i in range(len(src)):
-            t, msgs = src.load_messages(i)
-            w.write(img, m.stamp_ns(t), m.serialize(msgs["image"]))
-            w.write(info, m.stamp_ns(t), m.serialize(m.camera_info_msg(t, "cam", 128, 96, K, np.zeros(5),
-                                                                          np.hstack([K, np.zeros((3, 1))]))))
-        src.close()
-        for t in 100.0 + np.arange(120) / POSE_RATE:
-            w.write(tf, m.stamp_ns(t), m.serialize(tf_message(msgtype, t)))
+    # The frames of the pose-topic tests, with the poses on /tf instead.
+    stamps = mono_bag_with_poses(tmp_path / "tf.bag", msgtype, topic="/tf", message=tf_message)
     gt_stamps, gt_poses = read_tf(tmp_path / "tf.bag", "world", "/kinect")
     assert len(gt_stamps) == 120
     np.testing.assert_allclose(gt_poses[50], body_pose(gt_stamps[50]), atol=1e-9)
@@ -345,19 +343,7 @@ def test_images_without_header_stamps_take_the_bags_record_times(tmp_path):
     """A driver that leaves header stamps at zero: the bag's record times stand in, and
     an RGB-D pair recorded 5 ms apart is still paired."""
     bag = tmp_path / "unstamped.bag"
-    K = np.array([[80.0, 0, 31.5], [0, 80.0, 23.5], [0, 0, 1]])
-    with Writer(bag) as w:
-        rgb = w.add_connection("/camera/rgb/image_color", m.IMAGE, typestore=m.TYPESTORE)
-        depth = w.add_connection("/camera/depth/image", m.IMAGE, typestore=m.TYPESTORE)
-        info = w.add_connection("/camera/rgb/camera_info", m.CAMERA_INFO, typestore=m.TYPESTORE)
-        for k in range(3):
-            t = 70.0 + 0.1 * k
-            image = np.full((48, 64, 3), 60 + k, np.uint8)
-            w.write(rgb, m.stamp_ns(t), m.serialize(m.image_msg(image, "rgb8", 0.0, "c")))
-            w.write(info, m.stamp_ns(t), m.serialize(m.camera_info_msg(0.0, "c", 64, 48, K, np.zeros(5),
-                                                                          np.hstack([K, np.zeros((3, 1))]))))
-            w.write(depth, m.stamp_ns(t + 0.005),
-                    m.serialize(m.image_msg(np.full((48, 64), 2.0, np.float32), "32FC1", 0.0, "c")))
+    write_rgbd_bag(bag, 70.0 + 0.1 * np.arange(3), [0.005] * 3, depth_m=2.0, stamped=False)
     provider = BagProvider(bag)
     assert len(provider) == 3 and provider.stamp(2) == pytest.approx(70.2, abs=1e-6)
     assert any("record times" in w for w in provider.warnings)

@@ -54,51 +54,45 @@ class SegmentationServerTest(unittest.TestCase):
         with self.assertRaises(rospy.ServiceException):
             segment(bad)
 
-    def test_topic(self):
+    def labels_for(self, image_topic: str, msgtype, msg, labels_topic: str, first=None) -> list:
+        """The labels the server publishes on labels_topic for msg, published (once a second
+        until labels come, at most 60 s) on image_topic; `first` published once before it."""
         got = []
         done = threading.Event()
 
-        def on_labels(msg):
-            got.append(msg)
+        def on_labels(labels):
+            got.append(labels)
             done.set()
 
-        rospy.Subscriber("labels", Image, on_labels)
-        pub = rospy.Publisher("image", Image, queue_size=1)
+        rospy.Subscriber(labels_topic, Image, on_labels)
+        pub = rospy.Publisher(image_topic, msgtype, queue_size=1)
         deadline = time.time() + 60
         while pub.get_num_connections() == 0 and time.time() < deadline:
             time.sleep(0.05)
-        stamp = 1341846313.5
+        if first is not None:
+            pub.publish(first)
         while not done.is_set() and time.time() < deadline:
-            pub.publish(self.image_msg(stamp))
+            pub.publish(msg)
             done.wait(1.0)
+        return got
+
+    def test_topic(self):
+        stamp = 1341846313.5
+        got = self.labels_for("image", Image, self.image_msg(stamp), "labels")
         self.assertTrue(got, "no labels published")
         self.check_labels(got[0], stamp)
 
     def test_compressed_topic(self):
         # ~image_transport compressed: JPEG on /camera/rgb/image_color/compressed (the node's
         # image remapped to /camera/rgb/image_color); undecodable data is skipped, not fatal.
-        got = []
-        done = threading.Event()
-
-        def on_labels(msg):
-            got.append(msg)
-            done.set()
-
-        rospy.Subscriber("/compressed/labels", Image, on_labels)
-        pub = rospy.Publisher("/camera/rgb/image_color/compressed", CompressedImage, queue_size=1)
-        deadline = time.time() + 60
-        while pub.get_num_connections() == 0 and time.time() < deadline:
-            time.sleep(0.05)
         junk = CompressedImage(format="jpeg", data=bytes(32))
         junk.header.stamp = rospy.Time.from_sec(1.0)
-        pub.publish(junk)
         stamp = 1341846313.6
         msg = CompressedImage(format="bgr8; jpeg compressed bgr8", data=cv2.imencode(".jpg", self.image)[1].tobytes())
         msg.header.stamp = rospy.Time.from_sec(stamp)
         msg.header.frame_id = "camera_rgb_optical_frame"
-        while not done.is_set() and time.time() < deadline:
-            pub.publish(msg)
-            done.wait(1.0)
+        got = self.labels_for("/camera/rgb/image_color/compressed", CompressedImage, msg, "/compressed/labels",
+                              first=junk)
         self.assertTrue(got, "no labels published from the compressed topic")
         self.check_labels(got[0], stamp)
 
