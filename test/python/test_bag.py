@@ -187,6 +187,42 @@ def test_bag_run_masks_the_movable_labels(tmp_path, synth_rgbd):
     np.testing.assert_allclose(trajectory(tmp_path / "a")[:, 1:], trajectory(tmp_path / "c")[:, 1:], atol=1e-9)
 
 
+def test_bag_run_reads_mask_folders_by_stamp(tmp_path, synth_rgbd):
+    """A bag's frames are named <stamp>.png in per-frame folders, as TUM names its images: the sequence's
+    ground-truth masks serve its bag, and the two runs agree."""
+    bag = tmp_path / "synth.bag"
+    write_dataset_bag(BagWriteOptions(kind="tum", path=str(synth_rgbd), out=str(bag), depth_encoding="16UC1"))
+    masks = str(synth_rgbd / "dynamic_masks")
+    ds = run_dataset(RunOptions(kind="tum", path=str(synth_rgbd), out=str(tmp_path / "ds"), vocabulary="none",
+                                masks=masks, progress=False))
+    bg = run_bag(BagRunOptions(bag=str(bag), out=str(tmp_path / "bag"), vocabulary="none", progress=False,
+                               runner={"masks": masks}))
+    assert bg["masks"] == ds["masks"] == {"used": 8}
+    np.testing.assert_allclose(trajectory(tmp_path / "bag")[:, 1:], trajectory(tmp_path / "ds")[:, 1:], atol=1e-9)
+    with pytest.raises(ValueError, match="'sensor' is the bag's own"):
+        run_bag(BagRunOptions(bag=str(bag), runner={"sensor": "mono"}))
+    with pytest.raises(ValueError, match="'nope' is not a runner option"):
+        run_bag(BagRunOptions(bag=str(bag), runner={"nope": 1}))
+
+
+def test_cli_bag_run_takes_the_run_commands_options(tmp_path, synth_rgbd):
+    """`bag run` hands the runner what `dynaorb run` does: core options, pacing, priorities, saved masks."""
+    bag = tmp_path / "synth.bag"
+    write_dataset_bag(BagWriteOptions(kind="tum", path=str(synth_rgbd), out=str(bag), depth_encoding="16UC1"))
+    saved = tmp_path / "masks"
+    assert main(["bag", "run", str(bag), "--out", str(tmp_path / "out"), "--vocabulary", "none", "--quiet",
+                 "--dynamic", "dm", "--save-masks", str(saved), "--tracker", "max_frames=5", "--mapping",
+                 "neighbors_stereo=12", "--realtime", "4", "--async-mapping", "--background-nice", "0"]) == 0
+    stats = json.loads((tmp_path / "out" / "stats.json").read_text())
+    assert stats["tracked_frames"] == stats["frames"] == 8
+    assert stats["tracker_options"] == {"max_frames": 5.0}
+    assert stats["mapping_options"] == {"neighbors_stereo": 12.0}
+    assert stats["realtime"]["rate"] == 4.0 and stats["background_nice"] == 0 and not stats["synchronous_mapping"]
+    names = sorted(p.name for p in saved.iterdir())
+    assert len(names) == stats["dynamic_filter"]["masks_saved"] == 8
+    assert names == sorted(p.name for p in (synth_rgbd / "rgb").iterdir())  # <stamp>.png, as TUM's images
+
+
 # ------------------------------------------------------------------ bad input
 def write_images(path: pathlib.Path, encodings: list[str]) -> None:
     with Writer(path) as w:

@@ -10,22 +10,22 @@ def cmd_run(args) -> int:
     from dynaorb.runner import RunOptions, run_dataset
 
     stats = run_dataset(RunOptions(kind=args.kind, path=args.path, sensor=args.sensor, config=args.config,
-                                   out=args.out, dynamic=args.dynamic, masks=args.masks,
-                                   labels=args.labels, save_masks=args.save_masks,
-                                   labels_delay=args.labels_delay,
-                                   propagate_labels=not args.no_label_propagation,
-                                   vocabulary=args.vocabulary,
-                                   segment=args.segment, segment_mode=args.segment_mode,
-                                   segment_threads=args.segment_threads, segment_nice=args.segment_nice,
-                                   max_mask_age=args.max_mask_age, progress=not args.quiet,
-                                   synchronous_mapping=not args.async_mapping, realtime=args.realtime,
-                                   background_nice=args.background_nice, save_map=args.save_map,
-                                   load_map=args.load_map, localization=args.localization,
-                                   tracker=key_values(args.tracker, "--tracker"),
-                                   mapping=key_values(args.mapping, "--mapping"),
-                                   loop=key_values(args.loop, "--loop")))
+                                   **_runner_fields(args)))
     print(summary_line(args.out, stats))
     return 0
+
+
+def _runner_fields(args) -> dict:
+    """What main._runner_args reads, by RunOptions' field names (`run` and `bag run`)."""
+    return dict(out=args.out, dynamic=args.dynamic, masks=args.masks, labels=args.labels,
+                save_masks=args.save_masks, labels_delay=args.labels_delay,
+                propagate_labels=not args.no_label_propagation, vocabulary=args.vocabulary,
+                segment=args.segment, segment_mode=args.segment_mode, segment_threads=args.segment_threads,
+                segment_nice=args.segment_nice, max_mask_age=args.max_mask_age, progress=not args.quiet,
+                synchronous_mapping=not args.async_mapping, realtime=args.realtime,
+                background_nice=args.background_nice, save_map=args.save_map, load_map=args.load_map,
+                localization=args.localization, tracker=key_values(args.tracker, "--tracker"),
+                mapping=key_values(args.mapping, "--mapping"), loop=key_values(args.loop, "--loop"))
 
 
 def key_values(items: list[str], flag: str) -> dict:
@@ -314,14 +314,13 @@ def _bag_inputs(args) -> dict:
 def cmd_bag_run(args) -> int:
     from dynaorb.ros.bag import BagRunOptions, run_bag
 
-    stats = run_bag(BagRunOptions(bag=args.bag, **_bag_inputs(args), out=args.out,
-                                  vocabulary=args.vocabulary, dynamic=args.dynamic,
-                                  synchronous_mapping=not args.async_mapping, save_map=args.save_map,
-                                  segment=args.segment, segment_mode=args.segment_mode, progress=not args.quiet))
+    runner = _runner_fields(args)
+    # BagRunOptions' own fields, the rest as its runner options.
+    own = {k: runner.pop(k) for k in ("out", "vocabulary", "dynamic", "synchronous_mapping", "save_map", "segment",
+                                      "segment_mode", "progress")}
+    stats = run_bag(BagRunOptions(bag=args.bag, **_bag_inputs(args), **own, runner=runner))
     print(summary_line(args.out, stats))
     return 0
-
-
 
 
 def cmd_bag_info(args) -> int:

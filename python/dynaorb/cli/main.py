@@ -28,6 +28,80 @@ def _bag_input_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-diff", type=float, default=0.02, help="RGB-D colour/depth association [s]")
 
 
+def _runner_args(p: argparse.ArgumentParser, default_out: str) -> None:
+    """What `run` and `bag run` hand the runner (RunOptions): outputs, the dynamic
+    front end, segmentation, mapping, pacing, maps and the core's options.
+    Per-frame folders are named like the frames: a dataset's image names, a
+    bag's frames by stamp (<stamp>.png, 6 decimals, as `bag to-dataset` names
+    TUM-layout images)."""
+    p.add_argument("--out", default=default_out, help=f"output folder (default {default_out})")
+    p.add_argument("--dynamic", default="off", metavar="PRESET|FILE",
+                   help="dynamic-object front end: a preset of config/dynamic/ (off, stdyn, dm, ddl, li, full) "
+                        "or a preset YAML file (default off)")
+    p.add_argument("--labels", metavar="DIR",
+                   help="label images (class ids) named like the frames (a bag's: <stamp>.png) for the dynamic filter's semantic stage: "
+                        "a `dynaorb segment` folder (labels.json names the movable ids) or a folder in the "
+                        "preset's label set (e.g. a synthetic sequence's labels/, PASCAL VOC ids)")
+    p.add_argument("--labels-delay", type=int, default=0, metavar="N",
+                   help="emulate a segmentation network N frames behind the camera on the --labels folder: "
+                        "each frame gets the newest labels it would have finished, moved by optical flow "
+                        "(default 0: every frame its own labels)")
+    p.add_argument("--no-label-propagation", action="store_true",
+                   help="with --labels-delay (or --segment, async): use older labels as they are, not moved "
+                        "by optical flow")
+    p.add_argument("--save-masks", metavar="DIR",
+                   help="write the dynamic filter's mask of every frame here (PNG named like the frame; a "
+                        "bag's: <stamp>.png)")
+    p.add_argument("--masks", help="folder of per-frame exclusion masks / label images named like the frames "
+                                   "(a bag's: <stamp>.png; a `dynaorb segment` cache: its movable classes are masked; ground-truth masks)")
+    p.add_argument("--vocabulary", default="default", metavar="FILE|default|none",
+                   help="bag-of-words vocabulary for relocalisation and loop closing (default: dynaorb's own, "
+                        "built on first use with `dynaorb vocab default`; or a binary / ORBvoc.txt file; "
+                        "none: without; --load-map needs one)")
+    p.add_argument("--segment", metavar="MODEL",
+                   help="segment in-process with this model (file or name from `dynaorb models list`); "
+                        "its movable classes are masked, or, with a --dynamic preset, its labels feed the "
+                        "filter's semantic stage (a bag's labels topic is then not read)")
+    p.add_argument("--segment-mode", choices=["async", "sync"], default="async",
+                   help="async (default): the network runs on its own thread on the newest frame and "
+                        "older masks are propagated by optical flow; sync: every frame waits for its mask")
+    p.add_argument("--segment-threads", type=int, default=1,
+                   help="network threads (default 1: the tracking thread keeps a core)")
+    p.add_argument("--segment-nice", type=int, choices=range(0, 20), metavar="0-19", default=10,
+                   help="async: nice value of the network's thread above tracking's, so tracking gets the "
+                        "CPU first on a busy machine and the network what is left (default 10; 0: the same "
+                        "priority as tracking)")
+    p.add_argument("--max-mask-age", type=int, default=30,
+                   help="frames a propagated mask stays usable (default 30)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--async-mapping", action="store_true",
+                   help="run local mapping concurrently as on a live camera (default: each keyframe is "
+                        "mapped before the next frame, which makes runs repeatable)")
+    p.add_argument("--realtime", type=float, nargs="?", const=1.0, default=0.0, metavar="RATE",
+                   help="deliver the frames at RATE x the recording's rate (by their stamps; default 1 when "
+                        "given), as a live camera would; with --async-mapping this gives local mapping the "
+                        "time between frames that a camera gives it (default: as fast as tracking goes)")
+    p.add_argument("--background-nice", type=int, choices=range(0, 20), metavar="0-19", default=None,
+                   help="nice value of the local mapping, loop closing and global BA threads above the "
+                        "process's, so tracking gets the CPU first on a busy machine (default 10; 0: the "
+                        "same priority as tracking)")
+    p.add_argument("--save-map", metavar="OUT.map", help="write the map to this file after the run")
+    p.add_argument("--load-map", metavar="IN.map",
+                   help="start from a saved map (the first frame is relocalised in it; needs a vocabulary)")
+    p.add_argument("--localization", action="store_true",
+                   help="localisation only: track in the map, no new keyframes or map points "
+                        "(with --load-map)")
+    p.add_argument("--tracker", metavar="KEY=VALUE", action="append", default=[],
+                   help="a tracking option (a field of dynaorb._core.TrackerOptions), repeatable; e.g. "
+                        "--tracker mono_init_feature_factor=5 --tracker mono_init_feature_frames=40")
+    p.add_argument("--mapping", metavar="KEY=VALUE", action="append", default=[],
+                   help="a local mapping option (a field of dynaorb._core.LocalMapperOptions), repeatable; "
+                        "e.g. --mapping neighbors_stereo=15")
+    p.add_argument("--loop", metavar="KEY=VALUE", action="append", default=[],
+                   help="a loop closing option (a field of dynaorb._core.LoopCloserOptions; ransac.NAME for "
+                        "its Sim3RansacOptions), repeatable; e.g. --loop min_projection_matches=50")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="dynaorb", description="Visual SLAM for dynamic scenes.")
     p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
@@ -38,71 +112,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("path", help="TUM sequence folder, KITTI ROOT/sequences/NN, or EuRoC folder (with mav0)")
     r.add_argument("--sensor", choices=["mono", "stereo", "rgbd"], help="default: the richest the dataset has")
     r.add_argument("--config", help="ORB-SLAM2 settings YAML (default: from the dataset's calibration)")
-    r.add_argument("--out", default="out/run", help="output folder (default out/run)")
-    r.add_argument("--dynamic", default="off", metavar="PRESET|FILE",
-                   help="dynamic-object front end: a preset of config/dynamic/ (off, stdyn, dm, ddl, li, full) "
-                        "or a preset YAML file (default off)")
-    r.add_argument("--labels", metavar="DIR",
-                   help="label images (class ids) named like the frames for the dynamic filter's semantic stage: "
-                        "a `dynaorb segment` folder (labels.json names the movable ids) or a folder in the "
-                        "preset's label set (e.g. a synthetic sequence's labels/, PASCAL VOC ids)")
-    r.add_argument("--labels-delay", type=int, default=0, metavar="N",
-                   help="emulate a segmentation network N frames behind the camera on the --labels folder: "
-                        "each frame gets the newest labels it would have finished, moved by optical flow "
-                        "(default 0: every frame its own labels)")
-    r.add_argument("--no-label-propagation", action="store_true",
-                   help="with --labels-delay (or --segment, async): use older labels as they are, not moved "
-                        "by optical flow")
-    r.add_argument("--save-masks", metavar="DIR",
-                   help="write the dynamic filter's mask of every frame here (PNG named like the frame)")
-    r.add_argument("--masks", help="folder of per-frame exclusion masks / label images named like the frames "
-                                   "(a `dynaorb segment` cache: its movable classes are masked; ground-truth masks)")
-    r.add_argument("--vocabulary", default="default", metavar="FILE|default|none",
-                   help="bag-of-words vocabulary for relocalisation and loop closing (default: dynaorb's own, "
-                        "built on first use with `dynaorb vocab default`; or a binary / ORBvoc.txt file; "
-                        "none: without; --load-map needs one)")
-    r.add_argument("--segment", metavar="MODEL",
-                   help="segment in-process with this model (file or name from `dynaorb models list`); "
-                        "its movable classes are masked, or, with a --dynamic preset, its labels feed the "
-                        "filter's semantic stage")
-    r.add_argument("--segment-mode", choices=["async", "sync"], default="async",
-                   help="async (default): the network runs on its own thread on the newest frame and "
-                        "older masks are propagated by optical flow; sync: every frame waits for its mask")
-    r.add_argument("--segment-threads", type=int, default=1,
-                   help="network threads (default 1: the tracking thread keeps a core)")
-    r.add_argument("--segment-nice", type=int, choices=range(0, 20), metavar="0-19", default=10,
-                   help="async: nice value of the network's thread above tracking's, so tracking gets the "
-                        "CPU first on a busy machine and the network what is left (default 10; 0: the same "
-                        "priority as tracking)")
-    r.add_argument("--max-mask-age", type=int, default=30,
-                   help="frames a propagated mask stays usable (default 30)")
-    r.add_argument("--quiet", action="store_true", help="no progress bar")
-    r.add_argument("--async-mapping", action="store_true",
-                   help="run local mapping concurrently as on a live camera (default: each keyframe is "
-                        "mapped before the next frame, which makes runs repeatable)")
-    r.add_argument("--realtime", type=float, nargs="?", const=1.0, default=0.0, metavar="RATE",
-                   help="deliver the frames at RATE x the recording's rate (by their stamps; default 1 when "
-                        "given), as a live camera would; with --async-mapping this gives local mapping the "
-                        "time between frames that a camera gives it (default: as fast as tracking goes)")
-    r.add_argument("--background-nice", type=int, choices=range(0, 20), metavar="0-19", default=None,
-                   help="nice value of the local mapping, loop closing and global BA threads above the "
-                        "process's, so tracking gets the CPU first on a busy machine (default 10; 0: the "
-                        "same priority as tracking)")
-    r.add_argument("--save-map", metavar="OUT.map", help="write the map to this file after the run")
-    r.add_argument("--load-map", metavar="IN.map",
-                   help="start from a saved map (the first frame is relocalised in it; needs a vocabulary)")
-    r.add_argument("--localization", action="store_true",
-                   help="localisation only: track in the map, no new keyframes or map points "
-                        "(with --load-map)")
-    r.add_argument("--tracker", metavar="KEY=VALUE", action="append", default=[],
-                   help="a tracking option (a field of dynaorb._core.TrackerOptions), repeatable; e.g. "
-                        "--tracker mono_init_feature_factor=5 --tracker mono_init_feature_frames=40")
-    r.add_argument("--mapping", metavar="KEY=VALUE", action="append", default=[],
-                   help="a local mapping option (a field of dynaorb._core.LocalMapperOptions), repeatable; "
-                        "e.g. --mapping neighbors_stereo=15")
-    r.add_argument("--loop", metavar="KEY=VALUE", action="append", default=[],
-                   help="a loop closing option (a field of dynaorb._core.LoopCloserOptions; ransac.NAME for "
-                        "its Sim3RansacOptions), repeatable; e.g. --loop min_projection_matches=50")
+    _runner_args(r, default_out="out/run")
     r.set_defaults(func=commands.cmd_run)
 
     e = sub.add_parser("eval", help="ATE / RPE of an estimate against ground truth (evo)")
@@ -260,20 +270,7 @@ def build_parser() -> argparse.ArgumentParser:
     br = bsub.add_parser("run", help="run SLAM on a bag serially and repeatably (every frame, no wall clock)")
     br.add_argument("bag", nargs="+", help="a bag, or the parts of a split recording (read as one)")
     _bag_input_args(br)
-    br.add_argument("--out", default="out/bag", help="output folder (default out/bag)")
-    br.add_argument("--vocabulary", default="default", metavar="FILE|default|none")
-    br.add_argument("--dynamic", default="off", help="dynamic-object front-end preset (default off)")
-    br.add_argument("--async-mapping", action="store_true",
-                    help="local mapping concurrently (default: each keyframe mapped before the next frame)")
-    br.add_argument("--save-map", metavar="OUT.map")
-    br.add_argument("--segment", metavar="MODEL",
-                    help="segment in-process with this model (file or `dynaorb models list` name), for a bag "
-                         "without labels: its labels feed --dynamic's semantic stage (or mask the movable classes); "
-                         "a labels topic in the bag is then not read")
-    br.add_argument("--segment-mode", choices=["async", "sync"], default="async",
-                    help="async (default): the network on its own thread, older masks moved by optical flow; "
-                         "sync: every frame waits for its own")
-    br.add_argument("--quiet", action="store_true")
+    _runner_args(br, default_out="out/bag")
     br.set_defaults(func=commands.cmd_bag_run)
     bi = bsub.add_parser("info", help="what a bag holds and what `bag run` would take from it (topics by role, "
                                       "sensor, frames, settings, ground truth)")

@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 
 from dynaorb import core
-from dynaorb.runner.frames import readable_frames
+from dynaorb.runner.frames import frame_file_name, readable_frames
 from dynaorb.runner.label_delay import DelayedLabels
 from dynaorb.runner.masks import LabelFolder, MaskFolder
 from dynaorb.runner.pacing import Pacer
@@ -297,8 +297,8 @@ def _dynamic_summary(per_frame: list[dict]) -> dict:
     }
 
 
-def _mask_name(image_path: str) -> str:
-    return pathlib.Path(image_path).with_suffix(".png").name
+def _mask_name(frame) -> str:
+    return pathlib.Path(frame_file_name(frame)).with_suffix(".png").name
 
 
 def core_options(cls, values: dict | None, what: str):
@@ -448,8 +448,9 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
     mask_ages = []
     start = time.perf_counter()
     for i, frame in readable_frames(provider, skipped, opts.progress, f"{opts.kind} {pathlib.Path(opts.path).name}"):
-        mask = masks.for_image(frame.image_path, frame.image.shape[:2]) if masks else None
-        labels = labels_folder.for_image(frame.image_path, frame.image.shape[:2]) if labels_folder else None
+        name = frame_file_name(frame)
+        mask = masks.for_image(name, frame.image.shape[:2]) if masks else None
+        labels = labels_folder.for_image(name, frame.image.shape[:2]) if labels_folder else None
         t_labels = time.perf_counter()
         if delayed is not None:
             labels = delayed.labels_for(i, labels, frame.image)
@@ -506,7 +507,7 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
             if save_masks is not None:
                 dyn = system.last_dynamic_mask()
                 if dyn is not None:
-                    target = save_masks / _mask_name(frame.image_path)
+                    target = save_masks / _mask_name(frame)
                     if not cv2.imwrite(str(target), dyn):
                         raise OSError(f"{target}: cannot write the dynamic mask")
                     masks_saved += 1

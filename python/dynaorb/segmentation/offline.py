@@ -15,7 +15,7 @@ import statistics
 
 import cv2
 
-from dynaorb.runner.frames import readable_frames
+from dynaorb.runner.frames import frame_file_name, readable_frames
 from dynaorb.segmentation.segmenter import Segmenter
 
 LABELS_FILE = "labels.json"
@@ -39,7 +39,7 @@ def segment_sequence(kind: str, path: str, segmenter: Segmenter, out: str | path
     counts = collections.Counter()
     ms = []
     for _, frame in readable_frames(provider, counts, progress, f"segmenting {pathlib.Path(path).name}"):
-        target = out / pathlib.Path(frame.image_path).name
+        target = out / frame_file_name(frame)
         if target.is_file() and not overwrite:
             counts["cached"] += 1
             continue

@@ -45,6 +45,7 @@ class BagFrame:
     depth: np.ndarray | None = None   # in the System's units (DepthMapFactor): uint16 as stored, or float32
     labels: np.ndarray | None = None  # class ids, when the bag carries them
     image_path: str = ""              # "topic@stamp", for messages
+    file_name: str = ""               # "<stamp>.png" (6 decimals): its masks' and labels' name in a folder
 
 
 def _ns(stamp: float) -> int:
@@ -346,7 +347,8 @@ class BagProvider:
         s = self._settings
         where = f"{self.topics['image']}@{stamp:.6f}"
         try:
-            frame = BagFrame(index=i, stamp=stamp, image=m.image_for_tracking(msgs["image"], s.rgb), image_path=where)
+            frame = BagFrame(index=i, stamp=stamp, image=m.image_for_tracking(msgs["image"], s.rgb), image_path=where,
+                              file_name=f"{stamp:.6f}.png")
             if "right" in msgs:
                 frame.right = m.image_for_tracking(msgs["right"], s.rgb)
             if "depth" in msgs:
