@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <sstream>
 #include <utility>
 
@@ -193,6 +194,16 @@ NodeConfig read_config(const ros::NodeHandle& pnh) {
   // Ids only mean something in the labels' own set: given, they are the filter's too.
   if (n.movable_ids_given) cfg.system.dynamic.movable_classes = n.movable_ids;
 
+  n.trajectory_file = param_or<std::string>(pnh, "trajectory_file", n.trajectory_file);
+  if (!n.trajectory_file.empty()) {  // its folder made now: a path that cannot be written stops the node here
+    const std::filesystem::path folder = std::filesystem::absolute(n.trajectory_file).parent_path();
+    std::error_code ec;
+    std::filesystem::create_directories(folder, ec);
+    if (!std::filesystem::is_directory(folder))
+      throw InputError("~trajectory_file: cannot make its folder " + folder.string() +
+                       (ec ? " (" + ec.message() + ")" : ""));
+  }
+
   // Dense cloud.
   n.publish_cloud = param_or(pnh, "publish_cloud", n.publish_cloud);
   n.publish_unfiltered_cloud = param_or(pnh, "publish_unfiltered_cloud", n.publish_unfiltered_cloud);
@@ -276,6 +287,7 @@ std::string describe(const NodeConfig& cfg) {
                                             : ", labels (newest" + first_wait +
                                                   (n.propagate_labels ? "; moved by optical flow" : "; as they are") + ")") : ", no labels")
       << jump.str()
+      << (n.trajectory_file.empty() ? "" : "; trajectory to " + n.trajectory_file)
       << "; cloud " << (n.publish_cloud ? "max depth " + std::to_string(n.cloud.max_depth) + " m, stride " +
                                                std::to_string(n.cloud.stride)
                                          : "off");

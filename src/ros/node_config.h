@@ -94,6 +94,15 @@ struct NodeOptions {
   bool drop_unchecked_movable = true;
   DenseCloudOptions cloud;
   dynamic::StereoDepthOptions sgbm;  // stereo depth for clouds (and for inpainting, into the filter's options)
+
+  // The final trajectory as a TUM file ("": none): the System's, each tracked
+  // frame's camera pose through its keyframe's current (loop-closed, bundle-
+  // adjusted) pose, in the world of the map's first camera pose, as `dynaorb
+  // bag run` writes trajectory.tum. Written at shutdown and on
+  // ~save_trajectory; a pass ends where the map is replaced (time going back,
+  // ~reset, ~load_map), written first, and the next goes to STEM.pass2.SUFFIX
+  // and so on (support/trajectory_files.h).
+  std::string trajectory_file;
 };
 
 struct NodeConfig {

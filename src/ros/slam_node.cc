@@ -11,12 +11,14 @@
 #include <tf2_eigen/tf2_eigen.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <sstream>
 
 #include "dynaorb/core/grey_image.h"
 #include "dynaorb/io/errors.h"
 #include "ros_conversions.h"
+#include "support/trajectory_files.h"
 
 namespace dynaorb::node {
 
@@ -104,6 +106,7 @@ SlamNode::SlamNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   srv_reset_ = spnh.advertiseService("reset", &SlamNode::on_reset, this);
   srv_localization_ = spnh.advertiseService("set_localization_mode", &SlamNode::on_localization, this);
   srv_stats_ = spnh.advertiseService("stats", &SlamNode::on_stats, this);
+  srv_save_trajectory_ = spnh.advertiseService("save_trajectory", &SlamNode::on_save_trajectory, this);
   service_spinner_ = std::make_unique<ros::AsyncSpinner>(1, &service_queue_);
   service_spinner_->start();
 
@@ -313,6 +316,7 @@ void SlamNode::restart_after_time_jump(double stamp, double back) {
   forget_labels_after(stamp);
   {
     std::lock_guard<std::mutex> lk(system_mutex_);
+    end_trajectory_pass_locked("time went back");
     if (system_) system_->reset();
     map_restarted_ = true;
     last_tracked_ = false;
@@ -858,8 +862,15 @@ bool SlamNode::on_load_map(dynaorb::MapFile::Request& req, dynaorb::MapFile::Res
     res.message = "no system yet (waiting for camera_info)";
     return true;
   }
+  // The frames so far are written first: a loaded map restarts the
+  // trajectory (a refused file keeps it, and the pass goes on).
+  const size_t written = write_trajectory_locked("before ~load_map");
   try {
     system_->load_map(req.path);
+    if (written > 0) {
+      ++trajectory_pass_;
+      ++counters_.trajectory_passes;
+    }
     // The loaded map's world is the map frame (the saved map's first base pose).
     T_map_world_ = Eigen::Isometry3d::Identity();
     map_restarted_ = false;
@@ -874,6 +885,7 @@ bool SlamNode::on_load_map(dynaorb::MapFile::Request& req, dynaorb::MapFile::Res
 
 bool SlamNode::on_reset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
   std::lock_guard<std::mutex> lk(system_mutex_);
+  end_trajectory_pass_locked("~reset");
   if (system_) system_->reset();
   map_restarted_ = true;
   last_tracked_ = false;
@@ -889,6 +901,59 @@ bool SlamNode::on_localization(std_srvs::SetBool::Request& req, std_srvs::SetBoo
   res.success = true;
   res.message = req.data ? "localisation only" : "mapping";
   return true;
+}
+
+bool SlamNode::on_save_trajectory(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+  std::lock_guard<std::mutex> lk(system_mutex_);
+  const std::string& file = cfg_.node.trajectory_file;
+  if (file.empty()) {
+    res.message = "no ~trajectory_file set";
+    return true;
+  }
+  std::string error;
+  const size_t frames = write_trajectory_locked("on ~save_trajectory", &error);
+  const std::string path = pass_path(file, trajectory_pass_);
+  res.success = frames > 0;
+  res.message = !error.empty() ? error
+                : frames > 0 ? std::to_string(frames) + " frames written to " + path
+                             : "no frame tracked in this pass yet: " + path + " not written";
+  return true;
+}
+
+size_t SlamNode::write_trajectory_locked(const char* when, std::string* error) {
+  const std::string& file = cfg_.node.trajectory_file;
+  if (file.empty() || !system_) return 0;
+  const std::string path = pass_path(file, trajectory_pass_);
+  try {
+    const WrittenTrajectory w = write_trajectory_files(path, system_->trajectory(), system_->trajectory_segments());
+    if (w.frames > 0)
+      ROS_INFO("dynaorb_node: %s: trajectory of pass %d (%zu frames) written to %s%s", when, trajectory_pass_,
+               w.frames, path.c_str(), w.files.size() > 1 ? " (and one file per map beside it)" : "");
+    return w.frames;
+  } catch (const std::exception& e) {
+    ++counters_.trajectory_write_failures;
+    ROS_ERROR("dynaorb_node: %s: %s", when, e.what());
+    if (error) *error = e.what();
+    return 0;
+  }
+}
+
+void SlamNode::end_trajectory_pass_locked(const char* why) {
+  if (write_trajectory_locked(why) > 0) {
+    ++counters_.trajectory_passes;
+    ++trajectory_pass_;
+  }
+}
+
+void SlamNode::finish() {
+  std::lock_guard<std::mutex> lk(system_mutex_);
+  const size_t frames = write_trajectory_locked("at shutdown");
+  if (frames > 0) {
+    ++counters_.trajectory_passes;
+    // rosout is gone by now.
+    std::fprintf(stderr, "dynaorb_node: trajectory (%zu frames) written to %s\n", frames,
+                 pass_path(cfg_.node.trajectory_file, trajectory_pass_).c_str());
+  }
 }
 
 bool SlamNode::on_stats(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
@@ -911,7 +976,9 @@ std::string SlamNode::stats_json() const {
       << ", \"first_labels_timed_out\": " << c.first_labels_timed_out.load() << ", \"tf_failures\": " << c.tf_failures.load()
       << ", \"clouds\": " << c.clouds.load() << ", \"cloud_failures\": " << c.cloud_failures.load()
       << ", \"inpainted_clouds\": " << c.inpainted_clouds.load()
-      << ", \"unchecked_clouds\": " << c.unchecked_clouds.load() << ", \"time_jumps\": " << c.time_jumps.load();
+      << ", \"unchecked_clouds\": " << c.unchecked_clouds.load() << ", \"time_jumps\": " << c.time_jumps.load()
+      << ", \"trajectory_passes\": " << c.trajectory_passes.load()
+      << ", \"trajectory_write_failures\": " << c.trajectory_write_failures.load();
   std::lock_guard<std::mutex> lk(system_mutex_);
   if (system_) {
     const SystemCounters& s = system_->counters();

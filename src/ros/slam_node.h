@@ -17,7 +17,9 @@
 //             stamp), dynamic_mask (mono8, 255 = masked), tracking_state
 //             (dynaorb/TrackingStatus, every frame).
 // Services    ~save_map, ~load_map (dynaorb/MapFile), ~reset (std_srvs/Trigger),
-//             ~set_localization_mode (std_srvs/SetBool), ~stats (Trigger, JSON counters).
+//             ~set_localization_mode (std_srvs/SetBool), ~stats (Trigger, JSON counters),
+//             ~save_trajectory (Trigger: the final trajectory to ~trajectory_file now).
+// Writes      ~trajectory_file (TUM, one file per pass) at shutdown (finish()).
 #include <message_filters/pass_through.h>
 #include <message_filters/subscriber.h>
 #include <message_filters/sync_policies/approximate_time.h>
@@ -74,6 +76,8 @@ struct NodeCounters {
   std::atomic<long> unchecked_clouds{0};
   // Frames stamped more than ~time_jump_reset before the newest one: time went back, the map was dropped.
   std::atomic<long> time_jumps{0};
+  // ~trajectory_file: passes written, and writes that failed (logged; the node goes on).
+  std::atomic<long> trajectory_passes{0}, trajectory_write_failures{0};
 };
 
 class SlamNode {
@@ -81,6 +85,8 @@ class SlamNode {
   SlamNode(ros::NodeHandle nh, ros::NodeHandle pnh);
   ~SlamNode();
   std::string stats_json() const;
+  // At shutdown: the trajectory of the pass so far to ~trajectory_file's pass file.
+  void finish();
 
  private:
   using Image = sensor_msgs::Image;
@@ -150,6 +156,14 @@ class SlamNode {
   bool on_reset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res);
   bool on_localization(std_srvs::SetBool::Request& req, std_srvs::SetBool::Response& res);
   bool on_stats(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res);
+  bool on_save_trajectory(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res);
+  // With system_mutex_ held: the pass's trajectory to its file
+  // (~trajectory_file); the frames written (0: none tracked, nothing written).
+  // A failed write is logged and counted, and `error` (when given) says why.
+  size_t write_trajectory_locked(const char* when, std::string* error = nullptr);
+  // With system_mutex_ held, before the System's trajectory restarts (a new
+  // map): the pass's frames written, and the next pass begun if it had any.
+  void end_trajectory_pass_locked(const char* why);
 
   ros::NodeHandle nh_, pnh_;
   NodeConfig cfg_;
@@ -209,7 +223,8 @@ class SlamNode {
   // Services on their own queue and thread: a long track call does not block them.
   ros::CallbackQueue service_queue_;
   std::unique_ptr<ros::AsyncSpinner> service_spinner_;
-  ros::ServiceServer srv_save_, srv_load_, srv_reset_, srv_localization_, srv_stats_;
+  ros::ServiceServer srv_save_, srv_load_, srv_reset_, srv_localization_, srv_stats_, srv_save_trajectory_;
+  int trajectory_pass_ = 1;  // ~trajectory_file: the pass whose frames the System holds
 
   NodeCounters counters_;
 };

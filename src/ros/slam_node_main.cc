@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   ros::spin();
+  node->finish();  // ~trajectory_file
   // What degraded over the run (rosout is gone by now).
   std::fprintf(stderr, "dynaorb_node: %s\n", node->stats_json().c_str());
   return 0;

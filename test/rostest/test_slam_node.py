@@ -378,6 +378,9 @@ class SlamNodeTest(unittest.TestCase):
         """Last (alphabetical order): the services change the node's state."""
         folder = pathlib.Path(os.environ.get("ROS_HOME", "/tmp")) / "dynaorb_rostest" / rospy.get_name().strip("/")
         folder.mkdir(parents=True, exist_ok=True)
+        final = rospy.get_param("~final_trajectory", "")
+        if final:  # ~trajectory_file: the final trajectory now, then a new pass after ~reset
+            self._check_final_trajectory(pathlib.Path(final))
         res = rospy.ServiceProxy("/dynaorb/save_map", MapFile)(str(folder / "slam.map"))
         self.assertTrue(res.success, res.message)
         self.assertTrue((folder / "slam.map").is_file())
@@ -396,6 +399,30 @@ class SlamNodeTest(unittest.TestCase):
         big = cleared(min=Point(-1e3, -1e3, -1e3), max=Point(1e3, 1e3, 1e3))
         self.assertGreater(big.cleared, 0)
         rospy.ServiceProxy("/octomap/reset", Empty)()
+
+    def _check_final_trajectory(self, final: pathlib.Path):
+        for f in final.parent.glob(final.stem + "*"):
+            f.unlink()
+        save = rospy.ServiceProxy("/dynaorb/save_trajectory", Trigger)
+        res = save()
+        self.assertTrue(res.success, res.message)
+        from dynaorb.evaluation import evaluate
+
+        rows = np.loadtxt(final, ndmin=2)
+        self.assertEqual(len(rows), self.stats["tracked"], "one pose per tracked frame")
+        gt = self.bag.with_name(self.bag.stem + ".groundtruth.tum")
+        result = evaluate(str(gt), str(final), align="se3")
+        # The loop-closed, bundle-adjusted trajectory: within the bound the recorder's odometry meets.
+        self.assertLessEqual(result.ate["rmse"], float(rospy.get_param("~ate_max")))
+        # ~reset ends the pass (written again), the next goes to FILE-stem.pass2.tum: nothing tracked there yet.
+        self.assertTrue(rospy.ServiceProxy("/dynaorb/reset", Trigger)().success)
+        res = save()
+        self.assertFalse(res.success)
+        self.assertIn("pass2", res.message)
+        self.assertEqual(len(np.loadtxt(final, ndmin=2)), len(rows))
+        stats = json.loads(rospy.ServiceProxy("/dynaorb/stats", Trigger)().message)
+        self.assertEqual(stats["trajectory_passes"], 1)
+        self.assertEqual(stats["trajectory_write_failures"], 0)
 
     def test_no_occupied_voxels_on_the_movers_paths(self):
         if not rospy.get_param("~mover_check", False):

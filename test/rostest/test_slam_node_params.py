@@ -20,6 +20,7 @@ REFUSED = {
     "queue_size": ("0", "~queue_size must be >= 1"),
     "time_jump_reset": ("-1.0", "~time_jump_reset must be a finite number of seconds >= 0"),
     "image_transport": ("theora", "~image_transport must be 'raw' or 'compressed', got 'theora'"),
+    "trajectory_file": ("/proc/dynaorb/final.tum", "~trajectory_file: cannot make its folder /proc/dynaorb"),
     # The core's options (~tracker/, ~mapping/, ~loop/), checked by their own validate().
     "tracker/min_pose_inliers": ("-1", "tracker option 'min_pose_inliers' is -1"),
     "tracker/reloc/pnp/probability": ("1.5", "tracker option 'reloc.pnp.probability' is 1.5"),

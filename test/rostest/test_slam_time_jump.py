@@ -11,6 +11,8 @@ the node with ~time_jump_reset 0 refuses every replayed frame as out of order. A
 waits for each frame's labels (~wait_for_labels; label images published just after the
 frame): the labels of the time before are dropped at the jump (kept, they would tell the first
 replayed frame that its labels had passed), and every replayed frame is tracked with its own.
+The node with the reset writes each pass's trajectory (~trajectory_file): the first pass's at
+the jump, the replay's to FILE-stem.pass2.tum on ~save_trajectory.
 """
 import json
 import pathlib
@@ -19,6 +21,7 @@ import threading
 import unittest
 
 import cv2
+import numpy as np
 import rospy
 import rostest
 from sensor_msgs.msg import Image
@@ -54,6 +57,10 @@ class SlamTimeJumpTest(unittest.TestCase):
         seq = pathlib.Path(rospy.get_param("~sequence"))
         times = [float(t) for t in (seq / "times.txt").read_text().split()]
         frames = list(range(FIRST_PASS)) + list(range(REPLAY))
+        cls.final = pathlib.Path(rospy.get_param("~final_trajectory"))
+        for old in cls.final.parent.glob(cls.final.stem + "*"):
+            old.unlink()
+        cls.stamps = [BASE + times[i] + (SHIFT if k >= FIRST_PASS else 0.0) for k, i in enumerate(frames)]
         cls.answers = {n: [] for n in NODES}
         cond = threading.Condition()
 
@@ -117,6 +124,20 @@ class SlamTimeJumpTest(unittest.TestCase):
         self.assertTrue(all(a.mask_used and a.label_age == 0.0 for a in answers), [a.label_age for a in answers])
         self.assertEqual(self.stats["labels"]["time_jumps"], 1)
         self.assertEqual(self.stats["labels"]["labels_missing"], 0)
+
+    def test_each_pass_writes_its_trajectory(self):
+        self.assertEqual(self.stats["reset"]["trajectory_passes"], 1)  # the first, written at the jump
+        first = np.loadtxt(self.final, ndmin=2)
+        np.testing.assert_allclose(first[:, 0], self.stamps[:FIRST_PASS], atol=1e-6)
+        res = rospy.ServiceProxy("/reset/dynaorb_node/save_trajectory", Trigger)()
+        self.assertTrue(res.success, res.message)
+        replay = np.loadtxt(self.final.with_name(self.final.stem + ".pass2.tum"), ndmin=2)
+        np.testing.assert_allclose(replay[:, 0], self.stamps[FIRST_PASS:], atol=1e-6)
+        np.testing.assert_allclose(replay[0, 1:], [0, 0, 0, 0, 0, 0, 1], atol=1e-9)  # a new map's world
+        # KITTI 06 moves about 0.8 m a frame: the replay covers the first pass's first frames again.
+        self.assertGreater(np.linalg.norm(first[REPLAY - 1, 1:4]), 5.0)
+        np.testing.assert_allclose(replay[:, 1:4], first[:REPLAY, 1:4], atol=0.1)
+        self.assertFalse(rospy.ServiceProxy("/off/dynaorb_node/save_trajectory", Trigger)().success)  # none set
 
     def test_without_the_reset_the_replay_is_refused(self):
         replay = self.answers["off"][FIRST_PASS:]
