@@ -11,14 +11,11 @@
 #include <tf2_eigen/tf2_eigen.h>
 
 #include <cmath>
-#include <cstdio>
 #include <filesystem>
-#include <sstream>
 
 #include "dynaorb/core/grey_image.h"
 #include "dynaorb/io/errors.h"
 #include "ros_conversions.h"
-#include "support/trajectory_files.h"
 
 namespace dynaorb::node {
 
@@ -836,169 +833,6 @@ void SlamNode::publish_status(const FrameInput& f, const TrackResult& r, double 
   if (r.rejected != RejectReason::kNone)
     ROS_WARN_THROTTLE(5.0, "dynaorb_node: frame %.6f rejected: %s", f.header.stamp.toSec(), r.message.c_str());
   if (r.map_dropped) ROS_WARN("dynaorb_node: frame %.6f: %s", f.header.stamp.toSec(), r.message.c_str());
-}
-
-// ---------------------------------------------------------------- services
-
-bool SlamNode::on_save_map(dynaorb::MapFile::Request& req, dynaorb::MapFile::Response& res) {
-  std::lock_guard<std::mutex> lk(system_mutex_);
-  if (!system_) {
-    res.message = "no system yet (waiting for camera_info)";
-    return true;
-  }
-  try {
-    system_->save_map(req.path);
-    res.success = true;
-    res.message = "saved " + req.path;
-  } catch (const std::exception& e) {
-    res.message = e.what();
-  }
-  return true;
-}
-
-bool SlamNode::on_load_map(dynaorb::MapFile::Request& req, dynaorb::MapFile::Response& res) {
-  std::lock_guard<std::mutex> lk(system_mutex_);
-  if (!system_) {
-    res.message = "no system yet (waiting for camera_info)";
-    return true;
-  }
-  // The frames so far are written first: a loaded map restarts the
-  // trajectory (a refused file keeps it, and the pass goes on).
-  const size_t written = write_trajectory_locked("before ~load_map");
-  try {
-    system_->load_map(req.path);
-    if (written > 0) {
-      ++trajectory_pass_;
-      ++counters_.trajectory_passes;
-    }
-    // The loaded map's world is the map frame (the saved map's first base pose).
-    T_map_world_ = Eigen::Isometry3d::Identity();
-    map_restarted_ = false;
-    last_tracked_ = false;
-    res.success = true;
-    res.message = "loaded " + req.path + ": the next frame is relocalised in it";
-  } catch (const std::exception& e) {
-    res.message = e.what();
-  }
-  return true;
-}
-
-bool SlamNode::on_reset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
-  std::lock_guard<std::mutex> lk(system_mutex_);
-  end_trajectory_pass_locked("~reset");
-  if (system_) system_->reset();
-  map_restarted_ = true;
-  last_tracked_ = false;
-  res.success = true;
-  res.message = "map dropped: the next frame starts a new one";
-  return true;
-}
-
-bool SlamNode::on_localization(std_srvs::SetBool::Request& req, std_srvs::SetBool::Response& res) {
-  std::lock_guard<std::mutex> lk(system_mutex_);
-  cfg_.system.localization_only = req.data;
-  if (system_) system_->set_localization_mode(req.data);
-  res.success = true;
-  res.message = req.data ? "localisation only" : "mapping";
-  return true;
-}
-
-bool SlamNode::on_save_trajectory(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
-  std::lock_guard<std::mutex> lk(system_mutex_);
-  const std::string& file = cfg_.node.trajectory_file;
-  if (file.empty()) {
-    res.message = "no ~trajectory_file set";
-    return true;
-  }
-  std::string error;
-  const size_t frames = write_trajectory_locked("on ~save_trajectory", &error);
-  const std::string path = pass_path(file, trajectory_pass_);
-  res.success = frames > 0;
-  res.message = !error.empty() ? error
-                : frames > 0 ? std::to_string(frames) + " frames written to " + path
-                             : "no frame tracked in this pass yet: " + path + " not written";
-  return true;
-}
-
-size_t SlamNode::write_trajectory_locked(const char* when, std::string* error) {
-  const std::string& file = cfg_.node.trajectory_file;
-  if (file.empty() || !system_) return 0;
-  const std::string path = pass_path(file, trajectory_pass_);
-  try {
-    const WrittenTrajectory w = write_trajectory_files(path, system_->trajectory(), system_->trajectory_segments());
-    if (w.frames > 0)
-      ROS_INFO("dynaorb_node: %s: trajectory of pass %d (%zu frames) written to %s%s", when, trajectory_pass_,
-               w.frames, path.c_str(), w.files.size() > 1 ? " (and one file per map beside it)" : "");
-    return w.frames;
-  } catch (const std::exception& e) {
-    ++counters_.trajectory_write_failures;
-    ROS_ERROR("dynaorb_node: %s: %s", when, e.what());
-    if (error) *error = e.what();
-    return 0;
-  }
-}
-
-void SlamNode::end_trajectory_pass_locked(const char* why) {
-  if (write_trajectory_locked(why) > 0) {
-    ++counters_.trajectory_passes;
-    ++trajectory_pass_;
-  }
-}
-
-void SlamNode::finish() {
-  std::lock_guard<std::mutex> lk(system_mutex_);
-  const size_t frames = write_trajectory_locked("at shutdown");
-  if (frames > 0) {
-    ++counters_.trajectory_passes;
-    // rosout is gone by now.
-    std::fprintf(stderr, "dynaorb_node: trajectory (%zu frames) written to %s\n", frames,
-                 pass_path(cfg_.node.trajectory_file, trajectory_pass_).c_str());
-  }
-}
-
-bool SlamNode::on_stats(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
-  res.success = true;
-  res.message = stats_json();
-  return true;
-}
-
-std::string SlamNode::stats_json() const {
-  const NodeCounters& c = counters_;
-  std::ostringstream out;
-  out << "{\"frames_in\": " << c.frames_in.load() << ", \"unreadable\": " << c.unreadable.load()
-      << ", \"waiting_for_camera_info\": " << c.waiting_for_camera_info.load()
-      << ", \"labels_in\": " << c.labels_in.load() << ", \"labels_unreadable\": " << c.labels_unreadable.load()
-      << ", \"labels_used\": " << c.labels_used.load() << ", \"labels_missing\": " << c.labels_missing.load()
-      << ", \"labels_stale\": " << c.labels_stale.load() << ", \"labels_propagated\": " << c.labels_propagated.load()
-      << ", \"labels_as_is\": " << c.labels_as_is.load()
-      << ", \"label_propagation_ms_total\": " << c.label_propagation_us.load() / 1000.0
-      << ", \"skipped_before_labels\": " << c.skipped_before_labels.load()
-      << ", \"first_labels_timed_out\": " << c.first_labels_timed_out.load() << ", \"tf_failures\": " << c.tf_failures.load()
-      << ", \"clouds\": " << c.clouds.load() << ", \"cloud_failures\": " << c.cloud_failures.load()
-      << ", \"inpainted_clouds\": " << c.inpainted_clouds.load()
-      << ", \"unchecked_clouds\": " << c.unchecked_clouds.load() << ", \"time_jumps\": " << c.time_jumps.load()
-      << ", \"trajectory_passes\": " << c.trajectory_passes.load()
-      << ", \"trajectory_write_failures\": " << c.trajectory_write_failures.load();
-  std::lock_guard<std::mutex> lk(system_mutex_);
-  if (system_) {
-    const SystemCounters& s = system_->counters();
-    const MapSummary m = system_->map_summary();
-    out << ", \"frames\": " << s.frames << ", \"tracked\": " << s.tracked << ", \"lost\": " << s.lost
-        << ", \"rejected\": " << s.rejected << ", \"masks_dropped\": " << s.masks_dropped
-        << ", \"relocalizations\": " << s.relocalizations << ", \"loops_closed\": " << s.loops_closed
-        << ", \"dynamic_all_frames\": " << s.dynamic_all_frames
-        << ", \"dynamic_stage_failures\": " << s.dynamic_stage_failures
-        << ", \"unchecked_kept\": " << s.unchecked_kept
-        << ", \"keyframes\": " << m.keyframes << ", \"map_points\": " << m.points;
-  }
-  // The movable label ids in use: the filter's with a preset, else those masked.
-  const std::vector<int> ids = system_ && system_->dynamic_filter_enabled() ? system_->movable_classes()
-                                                                           : cfg_.node.movable_ids;
-  out << ", \"movable_classes\": [";
-  for (size_t i = 0; i < ids.size(); ++i) out << (i ? ", " : "") << ids[i];
-  out << "]";
-  out << "}";
-  return out.str();
 }
 
 }  // namespace dynaorb::node
