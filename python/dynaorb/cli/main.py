@@ -39,8 +39,8 @@ def _runner_args(p: argparse.ArgumentParser, default_out: str) -> None:
                    help="dynamic-object front end: a preset of config/dynamic/ (off, stdyn, dm, ddl, li, full) "
                         "or a preset YAML file (default off)")
     p.add_argument("--labels", metavar="DIR",
-                   help="label images (class ids) named like the frames (a bag's: <stamp>.png) for the dynamic filter's semantic stage: "
-                        "a `dynaorb segment` folder (labels.json names the movable ids) or a folder in the "
+                   help="label images (class ids) named like the frames (a bag's: <stamp>.png) for the dynamic "
+                        "filter's semantic stage: a `dynaorb segment` folder (labels.json names the movable ids) or a folder in the "
                         "preset's label set (e.g. a synthetic sequence's labels/, PASCAL VOC ids)")
     p.add_argument("--labels-delay", type=int, default=0, metavar="N",
                    help="emulate a segmentation network N frames behind the camera on the --labels folder: "
@@ -53,7 +53,8 @@ def _runner_args(p: argparse.ArgumentParser, default_out: str) -> None:
                    help="write the dynamic filter's mask of every frame here (PNG named like the frame; a "
                         "bag's: <stamp>.png)")
     p.add_argument("--masks", help="folder of per-frame exclusion masks / label images named like the frames "
-                                   "(a bag's: <stamp>.png; a `dynaorb segment` cache: its movable classes are masked; ground-truth masks)")
+                                   "(a bag's: <stamp>.png; a `dynaorb segment` cache: its movable classes are "
+                                   "masked; ground-truth masks)")
     p.add_argument("--vocabulary", default="default", metavar="FILE|default|none",
                    help="bag-of-words vocabulary for relocalisation and loop closing (default: dynaorb's own, "
                         "built on first use with `dynaorb vocab default`; or a binary / ORBvoc.txt file; "
@@ -267,7 +268,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="compressed images: png (lossless, default) or jpeg; labels and depth are always png")
     bf.add_argument("--quiet", action="store_true")
     bf.set_defaults(func=commands.cmd_bag_from_dataset)
-    br = bsub.add_parser("run", help="run SLAM on a bag serially and repeatably (every frame, no wall clock)")
+    br = bsub.add_parser("run", help="run SLAM on a bag serially: every frame in stamp order (repeatable unless "
+                                     "--async-mapping; --realtime paces them)")
     br.add_argument("bag", nargs="+", help="a bag, or the parts of a split recording (read as one)")
     _bag_input_args(br)
     _runner_args(br, default_out="out/bag")
