@@ -99,9 +99,9 @@ struct NodeOptions {
   // frame's camera pose through its keyframe's current (loop-closed, bundle-
   // adjusted) pose, in the world of the map's first camera pose, as `dynaorb
   // bag run` writes trajectory.tum. Written at shutdown and on
-  // ~save_trajectory; a pass ends where the map is replaced (time going back,
-  // ~reset, ~load_map), written first, and the next goes to STEM.pass2.SUFFIX
-  // and so on (support/trajectory_files.h).
+  // ~save_trajectory with an empty path; a pass ends where the map is
+  // replaced (time going back, ~reset, ~load_map), written first, and the
+  // next goes to STEM.pass2.SUFFIX and so on (support/trajectory_files.h).
   std::string trajectory_file;
 };
 

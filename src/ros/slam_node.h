@@ -18,7 +18,8 @@
 //             (dynaorb/TrackingStatus, every frame).
 // Services    ~save_map, ~load_map (dynaorb/MapFile), ~reset (std_srvs/Trigger),
 //             ~set_localization_mode (std_srvs/SetBool), ~stats (Trigger, JSON counters),
-//             ~save_trajectory (Trigger: the final trajectory to ~trajectory_file now).
+//             ~save_trajectory (MapFile: the final trajectory now, to `path`, or
+//             with an empty path to ~trajectory_file's file of this pass).
 // Writes      ~trajectory_file (TUM, one file per pass) at shutdown (finish()).
 #include <message_filters/pass_through.h>
 #include <message_filters/subscriber.h>
@@ -156,11 +157,13 @@ class SlamNode {
   bool on_reset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res);
   bool on_localization(std_srvs::SetBool::Request& req, std_srvs::SetBool::Response& res);
   bool on_stats(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res);
-  bool on_save_trajectory(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res);
-  // With system_mutex_ held: the pass's trajectory to its file
-  // (~trajectory_file); the frames written (0: none tracked, nothing written).
-  // A failed write is logged and counted, and `error` (when given) says why.
-  size_t write_trajectory_locked(const char* when, std::string* error = nullptr);
+  bool on_save_trajectory(dynaorb::MapFile::Request& req, dynaorb::MapFile::Response& res);
+  // ~trajectory_file's file for the current pass ("" when none is set).
+  std::string pass_file() const;
+  // With system_mutex_ held: the pass's trajectory to `path` (nothing for
+  // ""); the frames written (0: none tracked, nothing written). A failed
+  // write is logged and counted, and `error` (when given) says why.
+  size_t write_trajectory_locked(const std::string& path, const char* when, std::string* error = nullptr);
   // With system_mutex_ held, before the System's trajectory restarts (a new
   // map): the pass's frames written, and the next pass begun if it had any.
   void end_trajectory_pass_locked(const char* why);

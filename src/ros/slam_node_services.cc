@@ -33,7 +33,7 @@ bool SlamNode::on_load_map(dynaorb::MapFile::Request& req, dynaorb::MapFile::Res
   }
   // The frames so far are written first: a loaded map restarts the
   // trajectory (a refused file keeps it, and the pass goes on).
-  const size_t written = write_trajectory_locked("before ~load_map");
+  const size_t written = write_trajectory_locked(pass_file(), "before ~load_map");
   try {
     system_->load_map(req.path);
     if (written > 0) {
@@ -72,16 +72,19 @@ bool SlamNode::on_localization(std_srvs::SetBool::Request& req, std_srvs::SetBoo
   return true;
 }
 
-bool SlamNode::on_save_trajectory(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+bool SlamNode::on_save_trajectory(dynaorb::MapFile::Request& req, dynaorb::MapFile::Response& res) {
   std::lock_guard<std::mutex> lk(system_mutex_);
-  const std::string& file = cfg_.node.trajectory_file;
-  if (file.empty()) {
-    res.message = "no ~trajectory_file set";
+  const std::string path = req.path.empty() ? pass_file() : req.path;
+  if (path.empty()) {
+    res.message = "no path given and no ~trajectory_file set";
+    return true;
+  }
+  if (!system_) {
+    res.message = "no system yet (waiting for camera_info)";
     return true;
   }
   std::string error;
-  const size_t frames = write_trajectory_locked("on ~save_trajectory", &error);
-  const std::string path = pass_path(file, trajectory_pass_);
+  const size_t frames = write_trajectory_locked(path, "on ~save_trajectory", &error);
   res.success = frames > 0;
   res.message = !error.empty() ? error
                 : frames > 0 ? std::to_string(frames) + " frames written to " + path
@@ -89,10 +92,12 @@ bool SlamNode::on_save_trajectory(std_srvs::Trigger::Request&, std_srvs::Trigger
   return true;
 }
 
-size_t SlamNode::write_trajectory_locked(const char* when, std::string* error) {
-  const std::string& file = cfg_.node.trajectory_file;
-  if (file.empty() || !system_) return 0;
-  const std::string path = pass_path(file, trajectory_pass_);
+std::string SlamNode::pass_file() const {
+  return cfg_.node.trajectory_file.empty() ? std::string() : pass_path(cfg_.node.trajectory_file, trajectory_pass_);
+}
+
+size_t SlamNode::write_trajectory_locked(const std::string& path, const char* when, std::string* error) {
+  if (path.empty() || !system_) return 0;
   try {
     const WrittenTrajectory w = write_trajectory_files(path, system_->trajectory(), system_->trajectory_segments());
     if (w.frames > 0)
@@ -108,7 +113,7 @@ size_t SlamNode::write_trajectory_locked(const char* when, std::string* error) {
 }
 
 void SlamNode::end_trajectory_pass_locked(const char* why) {
-  if (write_trajectory_locked(why) > 0) {
+  if (write_trajectory_locked(pass_file(), why) > 0) {
     ++counters_.trajectory_passes;
     ++trajectory_pass_;
   }
@@ -116,12 +121,11 @@ void SlamNode::end_trajectory_pass_locked(const char* why) {
 
 void SlamNode::finish() {
   std::lock_guard<std::mutex> lk(system_mutex_);
-  const size_t frames = write_trajectory_locked("at shutdown");
+  const size_t frames = write_trajectory_locked(pass_file(), "at shutdown");
   if (frames > 0) {
     ++counters_.trajectory_passes;
     // rosout is gone by now.
-    std::fprintf(stderr, "dynaorb_node: trajectory (%zu frames) written to %s\n", frames,
-                 pass_path(cfg_.node.trajectory_file, trajectory_pass_).c_str());
+    std::fprintf(stderr, "dynaorb_node: trajectory (%zu frames) written to %s\n", frames, pass_file().c_str());
   }
 }
 

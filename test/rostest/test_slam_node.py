@@ -403,8 +403,8 @@ class SlamNodeTest(unittest.TestCase):
     def _check_final_trajectory(self, final: pathlib.Path):
         for f in final.parent.glob(final.stem + "*"):
             f.unlink()
-        save = rospy.ServiceProxy("/dynaorb/save_trajectory", Trigger)
-        res = save()
+        save = rospy.ServiceProxy("/dynaorb/save_trajectory", MapFile)
+        res = save("")  # to ~trajectory_file
         self.assertTrue(res.success, res.message)
         from dynaorb.evaluation import evaluate
 
@@ -416,7 +416,7 @@ class SlamNodeTest(unittest.TestCase):
         self.assertLessEqual(result.ate["rmse"], float(rospy.get_param("~ate_max")))
         # ~reset ends the pass (written again), the next goes to FILE-stem.pass2.tum: nothing tracked there yet.
         self.assertTrue(rospy.ServiceProxy("/dynaorb/reset", Trigger)().success)
-        res = save()
+        res = save("")
         self.assertFalse(res.success)
         self.assertIn("pass2", res.message)
         self.assertEqual(len(np.loadtxt(final, ndmin=2)), len(rows))

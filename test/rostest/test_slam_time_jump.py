@@ -28,6 +28,7 @@ from sensor_msgs.msg import Image
 from std_srvs.srv import Trigger
 
 from dynaorb.msg import TrackingStatus
+from dynaorb.srv import MapFile
 
 NODES = ("reset", "off", "labels")
 FIRST_PASS = 20  # frames, then the first REPLAY of them again
@@ -129,7 +130,7 @@ class SlamTimeJumpTest(unittest.TestCase):
         self.assertEqual(self.stats["reset"]["trajectory_passes"], 1)  # the first, written at the jump
         first = np.loadtxt(self.final, ndmin=2)
         np.testing.assert_allclose(first[:, 0], self.stamps[:FIRST_PASS], atol=1e-6)
-        res = rospy.ServiceProxy("/reset/dynaorb_node/save_trajectory", Trigger)()
+        res = rospy.ServiceProxy("/reset/dynaorb_node/save_trajectory", MapFile)("")
         self.assertTrue(res.success, res.message)
         replay = np.loadtxt(self.final.with_name(self.final.stem + ".pass2.tum"), ndmin=2)
         np.testing.assert_allclose(replay[:, 0], self.stamps[FIRST_PASS:], atol=1e-6)
@@ -137,7 +138,13 @@ class SlamTimeJumpTest(unittest.TestCase):
         # KITTI 06 moves about 0.8 m a frame: the replay covers the first pass's first frames again.
         self.assertGreater(np.linalg.norm(first[REPLAY - 1, 1:4]), 5.0)
         np.testing.assert_allclose(replay[:, 1:4], first[:REPLAY, 1:4], atol=0.1)
-        self.assertFalse(rospy.ServiceProxy("/off/dynaorb_node/save_trajectory", Trigger)().success)  # none set
+        # A node without ~trajectory_file writes where it is asked to: its one map, the first pass's frames.
+        save_off = rospy.ServiceProxy("/off/dynaorb_node/save_trajectory", MapFile)
+        self.assertFalse(save_off("").success)  # no path, no ~trajectory_file
+        asked = self.final.with_name("asked.tum")
+        res = save_off(str(asked))
+        self.assertTrue(res.success, res.message)
+        np.testing.assert_allclose(np.loadtxt(asked, ndmin=2)[:, 0], self.stamps[:FIRST_PASS], atol=1e-6)
 
     def test_without_the_reset_the_replay_is_refused(self):
         replay = self.answers["off"][FIRST_PASS:]
