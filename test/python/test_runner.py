@@ -3,7 +3,10 @@ from __future__ import annotations
 
 import collections
 import json
+import os
+import re
 import shutil
+import signal
 import statistics
 import subprocess
 import sys
@@ -89,6 +92,76 @@ def test_cli_run_and_errors(tmp_path, synth_rgbd):
     bad = subprocess.run([sys.executable, "-m", "dynaorb", "run", "tum", str(synth_rgbd), "--config", str(cfg),
                           "--quiet", "--out", str(tmp_path / "o2")], capture_output=True, text=True)
     assert bad.returncode == 2 and "Camera.bf" in bad.stderr
+
+
+class _CtrlCAt:
+    """A dataset's frames, with Ctrl-C (SIGINT to this process, `times` times) while frame `at` loads."""
+
+    def __init__(self, provider, at: int, times: int = 1):
+        self._provider, self._at, self._times = provider, at, times
+
+    def __len__(self):
+        return len(self._provider)
+
+    def __getattr__(self, name):
+        return getattr(self._provider, name)
+
+    def load(self, i: int):
+        frame = self._provider.load(i)
+        if i == self._at:
+            for _ in range(self._times):
+                os.kill(os.getpid(), signal.SIGINT)
+        return frame
+
+
+def test_ctrl_c_stops_between_frames_and_keeps_the_outputs(tmp_path, synth_rgbd):
+    from dynaorb import core
+    from dynaorb.cli.commands import _exit_status, summary_line
+
+    provider = _CtrlCAt(core().open_dataset("tum", str(synth_rgbd), None), at=5)
+    stats = run_dataset(RunOptions(kind="tum", path=str(synth_rgbd), out=str(tmp_path), vocabulary="none",
+                                   provider=provider, progress=False))
+    # Frames 0-4 tracked, frame 5 (loading when Ctrl-C came) and the rest not run.
+    assert stats["interrupted"] == {"frames_run": 5}
+    assert [f["index"] for f in stats["per_frame"]] == [0, 1, 2, 3, 4]
+    assert stats["tracked_frames"] == 5 and stats["tracked_fraction"] == 1.0
+    rows = [l for l in (tmp_path / "trajectory.tum").read_text().splitlines() if not l.startswith("#")]
+    assert len(rows) == 5
+    assert json.loads((tmp_path / "stats.json").read_text())["interrupted"] == {"frames_run": 5}
+    assert stats["ate"] is not None  # over the frames run
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # handed back
+    assert _exit_status(stats) == 130
+    assert "5/5 frames tracked (interrupted: 5 of 8 frames run)" in summary_line(tmp_path, stats)
+    # A second Ctrl-C quits at once, without outputs.
+    twice = _CtrlCAt(core().open_dataset("tum", str(synth_rgbd), None), at=2, times=2)
+    with pytest.raises(KeyboardInterrupt):
+        run_dataset(RunOptions(kind="tum", path=str(synth_rgbd), out=str(tmp_path / "twice"), vocabulary="none",
+                               provider=twice, progress=False))
+    assert not (tmp_path / "twice" / "stats.json").exists()
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_cli_ctrl_c_writes_the_frames_so_far(tmp_path, data):
+    """`dynaorb run` paced at half KITTI 06's rate, Ctrl-C once its progress bar has passed frame 5."""
+    proc = subprocess.Popen([sys.executable, "-m", "dynaorb", "run", "kitti", str(data / "kitti" / "sequences" / "06"),
+                             "--out", str(tmp_path), "--vocabulary", "none", "--realtime", "0.5"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    seen = ""
+    try:
+        while max(map(int, re.findall(r"(\d+)/51", seen)), default=0) < 5:  # tqdm's "N/51"
+            char = proc.stderr.read(1)
+            assert char, f"the run ended before frame 5: {seen}"
+            seen += char
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, seen + err
+    assert "interrupted:" in out and "of 51 frames run" in out
+    stats = json.loads((tmp_path / "stats.json").read_text())
+    assert 5 <= stats["interrupted"]["frames_run"] < 51
+    assert stats["tracked_frames"] == stats["interrupted"]["frames_run"]
+    assert (tmp_path / "trajectory.kitti").is_file()
 
 
 def test_euroc_stereo_run_rectifies(tmp_path, data):

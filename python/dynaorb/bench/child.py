@@ -31,6 +31,9 @@ def main(argv: list[str]) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 3
     stats = run_dataset(RunOptions(**spec, progress=False))
+    if stats.get("interrupted"):  # a partial run is no measurement
+        print(f"error: interrupted after {stats['interrupted']['frames_run']} frames", file=sys.stderr)
+        return 130
     dyn = stats.get("dynamic_filter")
     if dyn:
         dyn.pop("per_frame", None)

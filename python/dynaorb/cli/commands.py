@@ -12,7 +12,12 @@ def cmd_run(args) -> int:
     stats = run_dataset(RunOptions(kind=args.kind, path=args.path, sensor=args.sensor, config=args.config,
                                    **_runner_fields(args)))
     print(summary_line(args.out, stats))
-    return 0
+    return _exit_status(stats)
+
+
+def _exit_status(stats: dict) -> int:
+    """0, or 130 (as a shell reports Ctrl-C) for a run stopped by Ctrl-C: its outputs are written, but partial."""
+    return 130 if stats.get("interrupted") else 0
 
 
 def _runner_fields(args) -> dict:
@@ -60,8 +65,12 @@ def summary_line(out, stats: dict) -> str:
         dyn_text = (f"; dynamic filter ({', '.join(dyn['stages'])}): {d['stage_ms_median'].get('dynamic', 0):.1f} ms, "
                     f"{d['dynamic_keypoints_median']:.0f} dynamic keypoints, "
                     f"{100 * d['dynamic_fraction_median']:.1f} % of the image (medians)")
-    return (f"{stats['tracked_frames']}/{stats['frames']} frames tracked, {ate_text}, {ms}{dyn_text}; "
-            f"written to {out}")
+    stopped = stats.get("interrupted")
+    run = stopped["frames_run"] if stopped else stats["frames"]
+    frames = f"{stats['tracked_frames']}/{run} frames tracked"
+    if stopped:
+        frames += f" (interrupted: {run} of {stats['frames']} frames run)"
+    return f"{frames}, {ate_text}, {ms}{dyn_text}; written to {out}"
 
 
 def cmd_eval(args) -> int:
@@ -320,7 +329,7 @@ def cmd_bag_run(args) -> int:
                                       "segment_mode", "progress")}
     stats = run_bag(BagRunOptions(bag=args.bag, **_bag_inputs(args), **own, runner=runner))
     print(summary_line(args.out, stats))
-    return 0
+    return _exit_status(stats)
 
 
 def cmd_bag_info(args) -> int:

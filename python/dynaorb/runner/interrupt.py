@@ -1,0 +1,40 @@
+"""Ctrl-C during a run: stop between frames and keep what was done.
+
+A run interrupted with Ctrl-C (SIGINT) stops after the frame it is on, and
+the runner writes its outputs for the frames so far (trajectory, map points,
+stats.json with "interrupted"), as it does at the end of a sequence. A second
+Ctrl-C quits at once (KeyboardInterrupt). Signals can only be caught in the
+main thread: a run started from another thread is interrupted as before.
+"""
+from __future__ import annotations
+
+import logging
+import signal
+import threading
+
+log = logging.getLogger(__name__)
+
+
+class StopOnInterrupt:
+    def __init__(self):
+        self.requested = False
+        self._previous = None
+        self._installed = False
+
+    def __enter__(self) -> "StopOnInterrupt":
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._handle)
+            self._installed = True
+        return self
+
+    def _handle(self, signum, frame) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+        log.warning("interrupted: the run stops after this frame and writes its outputs for the frames so far "
+                    "(Ctrl-C again to quit at once, without them)")
+
+    def __exit__(self, *exc) -> bool:
+        if self._installed:
+            signal.signal(signal.SIGINT, self._previous)
+        return False
