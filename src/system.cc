@@ -627,6 +627,12 @@ MapSummary System::map_summary() const {
 
 void System::reset() { impl_->reset(); }
 
+void System::wait_for_mapping() {
+  Impl& s = *impl_;
+  if (s.mapper) s.mapper->wait_idle();
+  if (s.loop_closer) s.loop_closer->wait_idle();
+}
+
 // Map files and localisation only (map/map_io.h).
 void System::save_map(const std::string& path) {
   Impl& s = *impl_;

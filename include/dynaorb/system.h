@@ -190,6 +190,13 @@ class System {
   std::vector<TrajectorySegment> trajectory_segments() const;
   std::vector<Eigen::Vector3d> map_points() const;  // world coordinates
   MapSummary map_summary() const;
+  // Waits until local mapping has mapped every keyframe queued and loop
+  // closing has finished (with any global BA it started), so that
+  // trajectory(), map_points() and save_map() are final for the frames so
+  // far: what a caller does after its last frame (ORB-SLAM2's Shutdown waits
+  // for the global BA likewise). Returns at once with synchronous mapping
+  // or before the first frame. Between frames.
+  void wait_for_mapping();
   // Drops the map, the keyframe database and the trajectory; the next frame starts a new map.
   void reset();
 

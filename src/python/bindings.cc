@@ -479,6 +479,9 @@ PYBIND11_MODULE(_core, m) {
          "candidates the filter did not mark are unverified)) in the tracked image's pixels (rectified\n"
          "for stereo; stereo depth by semi-global block matching); inpaint: dynamic pixels filled with\n"
          "the background the remembered keyframes saw. None when the filter is off or before a frame.")
+      .def("wait_for_mapping", &System::wait_for_mapping, py::call_guard<py::gil_scoped_release>(),
+           "Waits until local mapping has mapped the keyframes queued and loop closing (with its global BA)\n"
+           "has finished: the trajectory and map are then final for the frames so far (after the last frame).")
       .def("reset", &System::reset, "Drops the map, the keyframe database and the trajectory.")
       .def("save_map", [](System& s, const py::object& path) {
         const std::string p = path_of(path);

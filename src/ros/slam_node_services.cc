@@ -33,6 +33,7 @@ bool SlamNode::on_load_map(dynaorb::MapFile::Request& req, dynaorb::MapFile::Res
   }
   // The frames so far are written first: a loaded map restarts the
   // trajectory (a refused file keeps it, and the pass goes on).
+  if (!pass_file().empty()) system_->wait_for_mapping();
   const size_t written = write_trajectory_locked(pass_file(), "before ~load_map");
   try {
     system_->load_map(req.path);
@@ -113,6 +114,7 @@ size_t SlamNode::write_trajectory_locked(const std::string& path, const char* wh
 }
 
 void SlamNode::end_trajectory_pass_locked(const char* why) {
+  if (system_ && !pass_file().empty()) system_->wait_for_mapping();  // the pass's final poses
   if (write_trajectory_locked(pass_file(), why) > 0) {
     ++counters_.trajectory_passes;
     ++trajectory_pass_;
@@ -121,6 +123,7 @@ void SlamNode::end_trajectory_pass_locked(const char* why) {
 
 void SlamNode::finish() {
   std::lock_guard<std::mutex> lk(system_mutex_);
+  if (system_ && !pass_file().empty()) system_->wait_for_mapping();  // keyframes queued, a global BA running
   const size_t frames = write_trajectory_locked(pass_file(), "at shutdown");
   if (frames > 0) {
     ++counters_.trajectory_passes;

@@ -94,3 +94,21 @@ def test_tracking_leaves_the_callers_images_alone(data):
     a = core().System(provider.default_settings(), "stereo").track_frame(f)
     b = core().System(provider.default_settings(), "stereo").track_frame(f)
     assert a.state == b.state == "OK" and a.keypoints == b.keypoints
+
+
+def test_wait_for_mapping_leaves_the_map_final(data):
+    """Concurrent mapping: after the last frame, wait_for_mapping() returns once the queued keyframes are
+    mapped (its last local BA run); nothing changes the map after it."""
+    import time
+
+    provider = core().open_dataset("kitti", str(data / "kitti" / "sequences" / "06"))
+    system = core().System(provider.default_settings(), provider.sensor)
+    results = [system.track_frame(provider.load(i)) for i in range(20)]
+    assert all(r.state == "OK" for r in results)
+    system.wait_for_mapping()
+    done = system.map_summary()
+    poses = system.trajectory()[1]
+    time.sleep(0.3)
+    assert system.map_summary() == done
+    np.testing.assert_array_equal(system.trajectory()[1], poses)
+    assert done["local_ba_runs"] >= 1

@@ -518,6 +518,11 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
                             raise OSError(f"{target}: cannot write the dynamic mask")
                         masks_saved += 1
     wall = time.perf_counter() - start
+    # Concurrent mapping: the keyframes still queued mapped and loop closing
+    # done (ORB-SLAM2 saves after its Shutdown likewise), so the outputs are final.
+    t0 = time.perf_counter()
+    system.wait_for_mapping()
+    final_mapping_wait_s = time.perf_counter() - t0
     if opts.save_map:
         t0 = time.perf_counter()
         system.save_map(opts.save_map)
@@ -573,6 +578,8 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
         "maps": maps,
         "map": system.map_summary(),
         "synchronous_mapping": opts.synchronous_mapping,
+        # After the last frame: until the queued keyframes were mapped and loop closing was done.
+        "final_mapping_wait_s": final_mapping_wait_s,
         "realtime": pacer.summary() if pacer is not None else None,
         "background_nice": opts.background_nice,
         "tracker_options": dict(opts.tracker or {}),
