@@ -33,7 +33,6 @@ bool SlamNode::on_load_map(dynaorb::MapFile::Request& req, dynaorb::MapFile::Res
   }
   // The frames so far are written first: a loaded map restarts the
   // trajectory (a refused file keeps it, and the pass goes on).
-  if (!pass_file().empty()) system_->wait_for_mapping();
   const size_t written = write_trajectory_locked(pass_file(), "before ~load_map");
   try {
     system_->load_map(req.path);
@@ -114,7 +113,8 @@ size_t SlamNode::write_trajectory_locked(const std::string& path, const char* wh
 }
 
 void SlamNode::end_trajectory_pass_locked(const char* why) {
-  if (system_ && !pass_file().empty()) system_->wait_for_mapping();  // the pass's final poses
+  // As the poses are now: waiting here for local mapping (or a global BA)
+  // to finish would hold up the frames of the new map.
   if (write_trajectory_locked(pass_file(), why) > 0) {
     ++counters_.trajectory_passes;
     ++trajectory_pass_;
@@ -123,8 +123,13 @@ void SlamNode::end_trajectory_pass_locked(const char* why) {
 
 void SlamNode::finish() {
   std::lock_guard<std::mutex> lk(system_mutex_);
-  if (system_ && !pass_file().empty()) system_->wait_for_mapping();  // keyframes queued, a global BA running
-  const size_t frames = write_trajectory_locked(pass_file(), "at shutdown");
+  if (pass_file().empty() || !system_) return;
+  // Written as the poses are, then again once local mapping has mapped the
+  // keyframes queued and a global BA has finished: a node stopped for good
+  // during that wait (roslaunch escalates to SIGTERM) still leaves a file.
+  if (write_trajectory_locked(pass_file(), "at shutdown") == 0) return;
+  system_->wait_for_mapping();
+  const size_t frames = write_trajectory_locked(pass_file(), "at shutdown, mapping done");
   if (frames > 0) {
     ++counters_.trajectory_passes;
     // rosout is gone by now.

@@ -55,6 +55,16 @@ TEST(TrajectoryFiles, OneMapIsOneFile) {
   fs::remove_all(file.parent_path());
 }
 
+TEST(TrajectoryFiles, AWriteReplacesTheFileWhole) {
+  const fs::path file = scratch("final.tum");
+  write_trajectory_files(file.string(), poses(100.0, 12), {});
+  const Trajectory later = poses(200.0, 5);  // the shutdown's second write, after the mapping wait
+  write_trajectory_files(file.string(), later, {});
+  expect_same(io::read_tum(file.string()), later);
+  EXPECT_FALSE(fs::exists(file.string() + ".part"));
+  fs::remove_all(file.parent_path());
+}
+
 TEST(TrajectoryFiles, SeveralMapsEachGetTheirOwnFile) {
   const fs::path file = scratch("final.tum");
   const Trajectory first = poses(100.0, 5), second = poses(110.0, 9);

@@ -1,7 +1,9 @@
 #include "support/trajectory_files.h"
 
 #include <filesystem>
+#include <system_error>
 
+#include "dynaorb/io/errors.h"
 #include "dynaorb/io/trajectory_io.h"
 
 namespace dynaorb::node {
@@ -12,6 +14,16 @@ namespace {
 std::string with_infix(const std::string& file, const std::string& infix) {
   const std::filesystem::path p(file);
   return (p.parent_path() / (p.stem().string() + infix + p.extension().string())).string();
+}
+
+// Written beside the file, then renamed over it: a node stopped while it
+// writes (a second write at shutdown) leaves the old file or the new one.
+void write_replacing(const std::string& path, const Trajectory& poses) {
+  const std::string part = path + ".part";
+  io::write_tum(part, poses);
+  std::error_code ec;
+  std::filesystem::rename(part, path, ec);
+  if (ec) throw InputError(path + ": cannot replace the trajectory file (" + ec.message() + ")");
 }
 
 }  // namespace
@@ -26,13 +38,13 @@ WrittenTrajectory write_trajectory_files(const std::string& path, const Trajecto
                                          const std::vector<TrajectorySegment>& segments) {
   WrittenTrajectory out;
   if (trajectory.empty()) return out;
-  io::write_tum(path, trajectory);
+  write_replacing(path, trajectory);
   out.frames = trajectory.size();
   out.files.push_back(path);
   if (segments.size() > 1) {
     for (const TrajectorySegment& s : segments) {
       const std::string file = map_path(path, s.map);
-      io::write_tum(file, s.poses);
+      write_replacing(file, s.poses);
       out.files.push_back(file);
     }
   }
