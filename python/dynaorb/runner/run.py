@@ -523,6 +523,9 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
     t0 = time.perf_counter()
     system.wait_for_mapping()
     final_mapping_wait_s = time.perf_counter() - t0
+    if final_mapping_wait_s > 1.0:  # a global BA after a late loop, on a long sequence
+        log.info("waited %.1f s after the last frame for local mapping and loop closing to finish",
+                 final_mapping_wait_s)
     if opts.save_map:
         t0 = time.perf_counter()
         system.save_map(opts.save_map)
