@@ -2,7 +2,9 @@
 // file, stats) and its shutdown: each takes the system mutex, so it runs
 // between two frames (services have their own queue and thread).
 #include <cstdio>
+#include <filesystem>
 #include <sstream>
+#include <system_error>
 
 #include "slam_node.h"
 #include "support/trajectory_files.h"
@@ -82,6 +84,10 @@ bool SlamNode::on_save_trajectory(dynaorb::MapFile::Request& req, dynaorb::MapFi
   if (!system_) {
     res.message = "no system yet (waiting for camera_info)";
     return true;
+  }
+  if (!req.path.empty()) {  // its folder made, as ~trajectory_file's is at start-up (a failure: the write says so)
+    std::error_code ec;
+    std::filesystem::create_directories(std::filesystem::absolute(req.path).parent_path(), ec);
   }
   std::string error;
   const size_t frames = write_trajectory_locked(path, "on ~save_trajectory", &error);

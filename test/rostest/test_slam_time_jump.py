@@ -59,7 +59,7 @@ class SlamTimeJumpTest(unittest.TestCase):
         times = [float(t) for t in (seq / "times.txt").read_text().split()]
         frames = list(range(FIRST_PASS)) + list(range(REPLAY))
         cls.final = pathlib.Path(rospy.get_param("~final_trajectory"))
-        for old in cls.final.parent.glob(cls.final.stem + "*"):
+        for old in [*cls.final.parent.glob(cls.final.stem + "*"), *cls.final.parent.glob("asked/*")]:
             old.unlink()
         cls.stamps = [BASE + times[i] + (SHIFT if k >= FIRST_PASS else 0.0) for k, i in enumerate(frames)]
         cls.answers = {n: [] for n in NODES}
@@ -141,7 +141,7 @@ class SlamTimeJumpTest(unittest.TestCase):
         # A node without ~trajectory_file writes where it is asked to: its one map, the first pass's frames.
         save_off = rospy.ServiceProxy("/off/dynaorb_node/save_trajectory", MapFile)
         self.assertFalse(save_off("").success)  # no path, no ~trajectory_file
-        asked = self.final.with_name("asked.tum")
+        asked = self.final.parent / "asked" / "final.tum"  # its folder made
         res = save_off(str(asked))
         self.assertTrue(res.success, res.message)
         np.testing.assert_allclose(np.loadtxt(asked, ndmin=2)[:, 0], self.stamps[:FIRST_PASS], atol=1e-6)

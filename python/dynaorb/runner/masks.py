@@ -21,38 +21,56 @@ import numpy as np
 log = logging.getLogger(__name__)
 
 
+def _read_named(folder: pathlib.Path, image_path: str, shape: tuple[int, int], counts: collections.Counter,
+                what: str, form: str, dtypes: tuple | None = None) -> np.ndarray | None:
+    """The single-channel image named like the frame's image in `folder`, of the frame's size (and of one of
+    `dtypes` when given); None, counted as "missing" (the first one logged) or "unusable" (logged), otherwise."""
+    path = folder / pathlib.Path(image_path).name
+    if not path.is_file():
+        counts["missing"] += 1
+        if counts["missing"] == 1:
+            log.warning("no %s for %s in %s (further misses are counted only)", what, image_path, folder)
+        return None
+    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if (image is None or image.ndim != 2 or image.shape != tuple(shape)
+            or (dtypes is not None and image.dtype not in dtypes)):
+        counts["unusable"] += 1
+        log.warning("%s %s: unreadable or not %dx%d %s: the frame runs without it", what, path, shape[1],
+                    shape[0], form)
+        return None
+    counts["used"] += 1
+    return image
+
+
+def _label_info(folder: pathlib.Path) -> tuple[dict | None, list[int] | None]:
+    """The folder's labels.json (written by `dynaorb segment`) and its movable ids; (None, None) without one.
+    ValueError names a file that is not such a description."""
+    info = folder / "labels.json"
+    if not info.is_file():
+        return None, None
+    try:
+        label_info = json.loads(info.read_text())
+        return label_info, [int(i) for i in label_info["movable"]]
+    except (ValueError, KeyError, TypeError) as exc:
+        raise ValueError(f"{info}: not a label description with a 'movable' id list ({exc})") from None
+
+
 class MaskFolder:
     def __init__(self, folder: str | pathlib.Path):
         self.folder = pathlib.Path(folder)
         if not self.folder.is_dir():
             raise FileNotFoundError(f"{self.folder}: mask folder does not exist")
         self.counts = collections.Counter()
-        self.label_info = None
+        self.label_info, ids = _label_info(self.folder)
         self._movable = None
-        info = self.folder / "labels.json"
-        if info.is_file():
-            try:
-                self.label_info = json.loads(info.read_text())
-                ids = [int(i) for i in self.label_info["movable"]]
-            except (ValueError, KeyError, TypeError) as exc:
-                raise ValueError(f"{info}: not a label description with a 'movable' id list ({exc})") from None
+        if ids is not None:
             self._movable = np.zeros(65536, bool)
             self._movable[ids] = True
 
     def for_image(self, image_path: str, shape: tuple[int, int]) -> np.ndarray | None:
-        path = self.folder / pathlib.Path(image_path).name
-        if not path.is_file():
-            self.counts["missing"] += 1
-            if self.counts["missing"] == 1:
-                log.warning("no mask for %s in %s (further misses are counted only)", image_path, self.folder)
+        mask = _read_named(self.folder, image_path, shape, self.counts, "mask", "single-channel")
+        if mask is None:
             return None
-        mask = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-        if mask is None or mask.ndim != 2 or mask.shape != tuple(shape):
-            self.counts["unusable"] += 1
-            log.warning("mask %s is unreadable or not %dx%d single-channel: frame runs without it",
-                        path, shape[1], shape[0])
-            return None
-        self.counts["used"] += 1
         if self._movable is not None:
             return np.where(self._movable[mask], np.uint8(255), np.uint8(0))
         return np.ascontiguousarray(mask.astype(np.uint8) if mask.dtype != np.uint16 else mask)
@@ -72,29 +90,10 @@ class LabelFolder:
         if not self.folder.is_dir():
             raise FileNotFoundError(f"{self.folder}: label folder does not exist")
         self.counts = collections.Counter()
-        self.label_info = None
-        self.movable: list[int] | None = None  # the folder's own movable ids (labels.json)
-        info = self.folder / "labels.json"
-        if info.is_file():
-            try:
-                self.label_info = json.loads(info.read_text())
-                self.movable = [int(i) for i in self.label_info["movable"]]
-            except (ValueError, KeyError, TypeError) as exc:
-                raise ValueError(f"{info}: not a label description with a 'movable' id list ({exc})") from None
+        # The folder's own movable ids (labels.json), or None.
+        self.label_info, self.movable = _label_info(self.folder)
 
     def for_image(self, image_path: str, shape: tuple[int, int]) -> np.ndarray | None:
-        path = self.folder / pathlib.Path(image_path).name
-        if not path.is_file():
-            self.counts["missing"] += 1
-            if self.counts["missing"] == 1:
-                log.warning("no labels for %s in %s (further misses are counted only)", image_path, self.folder)
-            return None
-        labels = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-        if labels is None or labels.ndim != 2 or labels.shape != tuple(shape) or labels.dtype not in (np.uint8,
-                                                                                                      np.uint16):
-            self.counts["unusable"] += 1
-            log.warning("labels %s are unreadable or not %dx%d single-channel 8/16-bit: frame runs without them",
-                        path, shape[1], shape[0])
-            return None
-        self.counts["used"] += 1
-        return np.ascontiguousarray(labels)
+        labels = _read_named(self.folder, image_path, shape, self.counts, "labels", "single-channel 8/16-bit",
+                             dtypes=(np.uint8, np.uint16))
+        return None if labels is None else np.ascontiguousarray(labels)
