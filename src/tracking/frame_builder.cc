@@ -186,6 +186,7 @@ std::shared_ptr<const map::Features> FrameBuilder::stereo(const cv::Mat& left, c
   if (left_here) detect_left();
   else left_detect.get();
   left_.describe(std::move(detected_left), mask, f->keys, f->descriptors, count);
+  right_detect.get();  // what the detections threw, as the description's
   right_job.get();
   t["extract"] = ms_since(t1);
   t["extract_overlapped"] = right_ms + (left_here ? 0.0 : left_ms);

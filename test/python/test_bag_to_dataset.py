@@ -339,6 +339,28 @@ def test_ground_truth_from_tf(tmp_path, msgtype):
                  "--ground-truth-tf", "world"]) == 2
 
 
+def test_a_pose_that_is_not_one_is_refused_by_name(tmp_path):
+    """A zero quaternion at 100.5 s, on a pose topic and on TF alike: a ValueError naming where."""
+    def broken(message):
+        def make(msgtype, t):
+            msg = message(msgtype, t)
+            if abs(t - 100.5) < 1e-9:
+                zero = m.TYPESTORE.types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=0.0)
+                if msgtype in m.TF_TYPES:
+                    msg.transforms[0].transform.rotation = zero
+                else:
+                    msg.pose.orientation = zero
+            return msg
+        return make
+
+    mono_bag_with_poses(tmp_path / "pose.bag", "geometry_msgs/msg/PoseStamped", message=broken(pose_message))
+    with pytest.raises(ValueError, match=r"/mocap/pose at 100\.500000: orientation .* is not a unit quaternion"):
+        read_pose_topic(tmp_path / "pose.bag", "/mocap/pose")
+    mono_bag_with_poses(tmp_path / "tf.bag", "tf2_msgs/msg/TFMessage", topic="/tf", message=broken(tf_message))
+    with pytest.raises(ValueError, match=r"TF world -> kinect at 100\.500000: orientation .* is not a unit quaternion"):
+        read_tf(tmp_path / "tf.bag", "world", "kinect")
+
+
 def test_images_without_header_stamps_take_the_bags_record_times(tmp_path):
     """A driver that leaves header stamps at zero: the bag's record times stand in, and
     an RGB-D pair recorded 5 ms apart is still paired."""

@@ -1,6 +1,7 @@
 """The subcommands behind `dynaorb`; each a thin layer over a library module."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import pathlib
 import sys
@@ -325,9 +326,9 @@ def cmd_bag_run(args) -> int:
 
     runner = _runner_fields(args)
     # BagRunOptions' own fields, the rest as its runner options.
-    own = {k: runner.pop(k) for k in ("out", "vocabulary", "dynamic", "synchronous_mapping", "save_map", "segment",
-                                      "segment_mode", "progress")}
-    stats = run_bag(BagRunOptions(bag=args.bag, **_bag_inputs(args), **own, runner=runner))
+    own = {f.name for f in dataclasses.fields(BagRunOptions)}
+    stats = run_bag(BagRunOptions(bag=args.bag, **_bag_inputs(args), **{k: v for k, v in runner.items() if k in own},
+                                  runner={k: v for k, v in runner.items() if k not in own}))
     print(summary_line(args.out, stats))
     return _exit_status(stats)
 

@@ -16,16 +16,23 @@ log = logging.getLogger(__name__)
 
 
 class StopOnInterrupt:
+    """install() before the frame loop, restore() after it (and on the way out
+    of an exception: restoring twice is harmless); `requested` once Ctrl-C came."""
+
     def __init__(self):
         self.requested = False
         self._previous = None
         self._installed = False
 
-    def __enter__(self) -> "StopOnInterrupt":
+    def install(self) -> None:
         if threading.current_thread() is threading.main_thread():
             self._previous = signal.signal(signal.SIGINT, self._handle)
             self._installed = True
-        return self
+
+    def restore(self) -> None:
+        if self._installed:
+            signal.signal(signal.SIGINT, self._previous)
+            self._installed = False
 
     def _handle(self, signum, frame) -> None:
         if self.requested:
@@ -33,8 +40,3 @@ class StopOnInterrupt:
         self.requested = True
         log.warning("interrupted: the run stops after this frame and writes its outputs for the frames so far "
                     "(Ctrl-C again to quit at once, without them)")
-
-    def __exit__(self, *exc) -> bool:
-        if self._installed:
-            signal.signal(signal.SIGINT, self._previous)
-        return False

@@ -359,9 +359,11 @@ def run_dataset(opts: RunOptions) -> dict:
     if opts.labels and opts.segment:
         raise ValueError("give either a label folder (--labels) or a segmentation model (--segment), not both")
     segmenter, semantic = _semantic(opts)
+    stop = StopOnInterrupt()
     try:
-        return _run(_core, opts, segmenter, semantic, options)
+        return _run(_core, opts, segmenter, semantic, options, stop)
     finally:
+        stop.restore()  # the loop left by an exception
         if semantic is not None:
             semantic.close()
 
@@ -384,7 +386,7 @@ def _label_mask(labels, movable: np.ndarray):
     return np.where(movable[labels], np.uint8(255), np.uint8(0))
 
 
-def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
+def _run(_core, opts: RunOptions, segmenter, semantic, options: dict, stop: StopOnInterrupt) -> dict:
     pacer = Pacer(opts.realtime) if opts.realtime else None  # a bad rate refused before any work
     provider = opts.provider if opts.provider is not None else _core.open_dataset(opts.kind, opts.path, opts.sensor)
     for w in provider.warnings:
@@ -448,75 +450,74 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict) -> dict:
     frame_records = []  # one per frame read: what tracking made of it
     mask_ages = []
     start = time.perf_counter()
-    with StopOnInterrupt() as stop:
-        frames = readable_frames(provider, skipped, opts.progress, f"{opts.kind} {pathlib.Path(opts.path).name}")
-        for i, frame in frames:
-            if stop.requested:
-                break
-            name = frame_file_name(frame)
-            mask = masks.for_image(name, frame.image.shape[:2]) if masks else None
-            labels = labels_folder.for_image(name, frame.image.shape[:2]) if labels_folder else None
-            t_labels = time.perf_counter()
-            if delayed is not None:
-                labels = delayed.labels_for(i, labels, frame.image)
-            if semantic is not None:
-                seg = semantic.labels_for(i, frame.image)
-                mask_ages.append(seg.age)
-                if dynamic_on:
-                    labels = seg.labels  # the filter decides what of the movable classes to drop
-                else:
-                    mask = segmenter.movable_mask(seg.labels) if seg.labels is not None else None
-            elif labels is None and masks is None and getattr(frame, "labels", None) is not None:
-                # Labels carried by the frame (a bag's label topic).
-                frames_with_labels += 1
-                if dynamic_on:
-                    labels = frame.labels
-                else:
-                    mask = _label_mask(frame.labels, movable)
-            if live_labels:
-                # The tracking thread's own time for this frame's labels (the
-                # network's result taken, reduced to its movable classes, moved onto
-                # the frame): spent before the track call, on the same thread.
-                labels_ms.append(1000.0 * (time.perf_counter() - t_labels))
-            if pacer is not None:
-                pacer.wait(frame.stamp)
-            t0 = time.perf_counter()
-            result = _track(_core, system, frame, mask, labels)
-            track_call_ms.append(1000.0 * (time.perf_counter() - t0))
-            if result.rejected != "none":
-                log.warning("frame %d (%s) rejected: %s", i, frame.image_path, result.message)
-            states[result.state] += 1
-            if result.state == "OK":
-                ok_frames.append(i)
-            methods[result.method or "rejected"] += 1
-            frame_records.append({
-                "index": i, "stamp": frame.stamp, "state": result.state, "method": result.method or None,
-                "rejected": None if result.rejected == "none" else result.rejected, "map": result.map,
-                "map_dropped": result.map_dropped, "keypoints": result.keypoints,
-                "tracked_points": result.tracked_points, "new_keyframe": result.new_keyframe,
-                "track_call_ms": track_call_ms[-1],
-                "labels_ms": labels_ms[-1] if live_labels else None,
-                # Part of the tracking stage spent waiting for the map lock (local
-                # mapping, loop closing or global BA changing the map meanwhile).
-                "map_wait_ms": result.stage_ms.get("tracking.map_wait"),
-                # This frame's stage times (the medians are in stage_ms_median).
-                "stage_ms": dict(result.stage_ms),
-                # Why a frame was not tracked (the initialisation's or tracking's own words).
-                "message": None if result.state == "OK" else (result.message or None)})
-            if dynamic_on and result.rejected == "none":
-                dynamic_frames.append({
-                    "index": i, "stamp": frame.stamp, "labels_used": result.labels_used,
-                    "dynamic_keypoints": result.dynamic_keypoints, "dynamic_fraction": result.dynamic_fraction,
-                    "stage_ms": {k: v for k, v in result.stage_ms.items()
-                                 if k == "dynamic" or k.startswith("dynamic.")},
-                    "values": dict(result.dynamic_values)})
-                if save_masks is not None:
-                    dyn = system.last_dynamic_mask()
-                    if dyn is not None:
-                        target = save_masks / _mask_name(frame)
-                        if not cv2.imwrite(str(target), dyn):
-                            raise OSError(f"{target}: cannot write the dynamic mask")
-                        masks_saved += 1
+    stop.install()  # Ctrl-C from here: the loop ends after the frame it is on
+    for i, frame in readable_frames(provider, skipped, opts.progress, f"{opts.kind} {pathlib.Path(opts.path).name}"):
+        if stop.requested:
+            break
+        name = frame_file_name(frame)
+        mask = masks.for_image(name, frame.image.shape[:2]) if masks else None
+        labels = labels_folder.for_image(name, frame.image.shape[:2]) if labels_folder else None
+        t_labels = time.perf_counter()
+        if delayed is not None:
+            labels = delayed.labels_for(i, labels, frame.image)
+        if semantic is not None:
+            seg = semantic.labels_for(i, frame.image)
+            mask_ages.append(seg.age)
+            if dynamic_on:
+                labels = seg.labels  # the filter decides what of the movable classes to drop
+            else:
+                mask = segmenter.movable_mask(seg.labels) if seg.labels is not None else None
+        elif labels is None and masks is None and getattr(frame, "labels", None) is not None:
+            # Labels carried by the frame (a bag's label topic).
+            frames_with_labels += 1
+            if dynamic_on:
+                labels = frame.labels
+            else:
+                mask = _label_mask(frame.labels, movable)
+        if live_labels:
+            # The tracking thread's own time for this frame's labels (the
+            # network's result taken, reduced to its movable classes, moved onto
+            # the frame): spent before the track call, on the same thread.
+            labels_ms.append(1000.0 * (time.perf_counter() - t_labels))
+        if pacer is not None:
+            pacer.wait(frame.stamp)
+        t0 = time.perf_counter()
+        result = _track(_core, system, frame, mask, labels)
+        track_call_ms.append(1000.0 * (time.perf_counter() - t0))
+        if result.rejected != "none":
+            log.warning("frame %d (%s) rejected: %s", i, frame.image_path, result.message)
+        states[result.state] += 1
+        if result.state == "OK":
+            ok_frames.append(i)
+        methods[result.method or "rejected"] += 1
+        frame_records.append({
+            "index": i, "stamp": frame.stamp, "state": result.state, "method": result.method or None,
+            "rejected": None if result.rejected == "none" else result.rejected, "map": result.map,
+            "map_dropped": result.map_dropped, "keypoints": result.keypoints,
+            "tracked_points": result.tracked_points, "new_keyframe": result.new_keyframe,
+            "track_call_ms": track_call_ms[-1],
+            "labels_ms": labels_ms[-1] if live_labels else None,
+            # Part of the tracking stage spent waiting for the map lock (local
+            # mapping, loop closing or global BA changing the map meanwhile).
+            "map_wait_ms": result.stage_ms.get("tracking.map_wait"),
+            # This frame's stage times (the medians are in stage_ms_median).
+            "stage_ms": dict(result.stage_ms),
+            # Why a frame was not tracked (the initialisation's or tracking's own words).
+            "message": None if result.state == "OK" else (result.message or None)})
+        if dynamic_on and result.rejected == "none":
+            dynamic_frames.append({
+                "index": i, "stamp": frame.stamp, "labels_used": result.labels_used,
+                "dynamic_keypoints": result.dynamic_keypoints, "dynamic_fraction": result.dynamic_fraction,
+                "stage_ms": {k: v for k, v in result.stage_ms.items() if k == "dynamic" or k.startswith("dynamic.")},
+                "values": dict(result.dynamic_values)})
+            if save_masks is not None:
+                dyn = system.last_dynamic_mask()
+                if dyn is not None:
+                    target = save_masks / _mask_name(frame)
+                    if not cv2.imwrite(str(target), dyn):
+                        raise OSError(f"{target}: cannot write the dynamic mask")
+                    masks_saved += 1
+    stop.restore()
     wall = time.perf_counter() - start
     # Concurrent mapping: the keyframes still queued mapped and loop closing
     # done (ORB-SLAM2 saves after its Shutdown likewise), so the outputs are final.

@@ -41,19 +41,35 @@ def read_pose_topic(bag, topic: str) -> tuple[np.ndarray, np.ndarray]:
         rows = {}
         for conn, _, raw in reader.messages(connections=conns):
             msg = m.deserialize(raw, conn.msgtype)
-            stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-            p, q = _position_orientation(msg, conn.msgtype)
-            rows.setdefault(m.stamp_ns(stamp), (stamp, [p.x, p.y, p.z], [q.x, q.y, q.z, q.w]))
+            stamp = _seconds(msg.header.stamp)
+            key = m.stamp_ns(stamp)
+            if key not in rows:  # a repeated stamp keeps the first
+                p, q = _position_orientation(msg, conn.msgtype)
+                rows[key] = (stamp, _matrix(p, q, f"{bag}: {topic} at {stamp:.6f}"))
+    return _ordered(rows)
+
+
+def _seconds(stamp) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def _matrix(t, q, where: str) -> np.ndarray:
+    """The 4x4 pose of translation t and quaternion q (message fields); ValueError
+    naming `where` for a quaternion that is not a unit one."""
+    xyzw = np.array([q.x, q.y, q.z, q.w], dtype=float)
+    norm = float(np.linalg.norm(xyzw))
+    if not (np.isfinite(norm) and abs(norm - 1.0) < 1e-3):
+        raise ValueError(f"{where}: orientation {xyzw.tolist()} is not a unit quaternion")
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_quat(xyzw / norm).as_matrix()
+    T[:3, 3] = [t.x, t.y, t.z]
+    return T
+
+
+def _ordered(rows: dict) -> tuple[np.ndarray, np.ndarray]:
+    """{stamp ns: (stamp, pose)} as (stamps, N x 4 x 4 poses) in stamp order."""
     ordered = [rows[k] for k in sorted(rows)]
-    stamps = np.array([r[0] for r in ordered], dtype=float)
-    poses = np.tile(np.eye(4), (len(ordered), 1, 1))
-    for k, (_, t, q) in enumerate(ordered):
-        norm = float(np.linalg.norm(q))
-        if not (np.isfinite(norm) and abs(norm - 1.0) < 1e-3):
-            raise ValueError(f"{bag}: {topic} at {ordered[k][0]:.6f}: orientation {q} is not a unit quaternion")
-        poses[k, :3, :3] = Rotation.from_quat(np.asarray(q) / norm).as_matrix()
-        poses[k, :3, 3] = t
-    return stamps, poses
+    return np.array([r[0] for r in ordered], dtype=float), np.array([r[1] for r in ordered]).reshape(-1, 4, 4)
 
 
 def _frame(name: str) -> str:
@@ -81,17 +97,15 @@ def read_tf(bag, parent: str, child: str) -> tuple[np.ndarray, np.ndarray]:
                 pairs.add((a, b))
                 if (a, b) not in ((parent, child), (child, parent)):
                     continue
-                stamp = tf.header.stamp.sec + tf.header.stamp.nanosec * 1e-9
-                t, q = tf.transform.translation, tf.transform.rotation
-                T = np.eye(4)
-                T[:3, :3] = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
-                T[:3, 3] = [t.x, t.y, t.z]
-                rows.setdefault(m.stamp_ns(stamp), (stamp, T if a == parent else np.linalg.inv(T)))
+                stamp = _seconds(tf.header.stamp)
+                key = m.stamp_ns(stamp)
+                if key not in rows:  # a repeated stamp keeps the first
+                    T = _matrix(tf.transform.translation, tf.transform.rotation, f"{bag}: TF {a} -> {b} at {stamp:.6f}")
+                    rows[key] = (stamp, T if a == parent else np.linalg.inv(T))
     if not rows:
         raise ValueError(f"{bag}: no transform joins {parent} and {child} in its TF messages (frame pairs: "
                          f"{', '.join(f'{a} -> {b}' for a, b in sorted(pairs)) or 'none'})")
-    ordered = [rows[k] for k in sorted(rows)]
-    return np.array([r[0] for r in ordered]), np.stack([r[1] for r in ordered])
+    return _ordered(rows)
 
 
 def sample(stamps: np.ndarray, poses: np.ndarray, at: np.ndarray, max_gap: float) -> np.ndarray:
