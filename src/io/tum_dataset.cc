@@ -59,6 +59,16 @@ Settings freiburg_settings(int n) {
   return s;
 }
 
+}  // namespace
+
+std::optional<Settings> tum_settings_for_name(const std::string& name) {
+  for (int n = 1; n <= 3; ++n)
+    if (name.find("freiburg" + std::to_string(n)) != std::string::npos) return freiburg_settings(n);
+  return std::nullopt;
+}
+
+namespace {
+
 class TumDataset : public DataProvider {
  public:
   TumDataset(const path& root, const DatasetOptions& options) : root_(root) {
@@ -98,8 +108,7 @@ class TumDataset : public DataProvider {
     if (io::has_settings_file(root_)) return Settings::load((root_ / "settings.yaml").string());
     const std::string name = root_.filename().string().empty() ? root_.parent_path().filename().string()
                                                                : root_.filename().string();
-    for (int n = 1; n <= 3; ++n)
-      if (name.find("freiburg" + std::to_string(n)) != std::string::npos) return freiburg_settings(n);
+    if (std::optional<Settings> s = tum_settings_for_name(name)) return *s;
     throw InputError(root_.string(), 0,
                      "no settings.yaml here and the folder name names no freiburg1/2/3 camera: "
                      "pass a settings file (--config)");

@@ -175,6 +175,9 @@ PYBIND11_MODULE(_core, m) {
           return open_dataset(kind, path, options);
         },
         py::arg("kind"), py::arg("path"), py::arg("sensor") = py::none());
+  m.def("tum_settings_for_name", &tum_settings_for_name, py::arg("name"),
+        "The TUM RGB-D benchmark's camera (ORB-SLAM2's TUM1/2/3.yaml) for a name that names freiburg1, 2 or 3; "
+        "None when it names none.");
 
   py::class_<vocab::Vocabulary, VocabularyPtr>(
       m, "Vocabulary",

@@ -249,8 +249,10 @@ def test_unreadable_frames_are_counted_not_fatal(tmp_path):
 def test_clear_errors(tmp_path, capsys):
     bag = tmp_path / "bad.bag"
     write_images(bag, ["mono8"])
-    with pytest.raises(ValueError, match="no settings"):
+    with pytest.raises(ValueError, match="no image topic"):  # what the bag lacks first, then what is beside it
         BagProvider(bag)
+    with pytest.raises(ValueError, match="no settings"):
+        BagProvider(bag, topics={"image": "/camera/image_raw"})
     config = pathlib.Path(__file__).resolve().parents[2] / "config" / "TUM3.yaml"
     with pytest.raises(ValueError, match="no image topic"):
         BagProvider(bag, settings=str(config))
@@ -347,7 +349,9 @@ def test_bag_info(tmp_path, synth_stereo, capsys):
     write_images(odd, ["mono8", "mono8"])
     assert main(["bag", "info", str(odd)]) == 0  # topics listed; why it is no sequence said
     out = capsys.readouterr().out
-    assert "/camera/image_raw" in out and "not readable as a sequence" in out and "no settings" in out
+    assert "/camera/image_raw" in out and "not readable as a sequence" in out and "--topic image=TOPIC" in out
+    assert main(["bag", "info", str(odd), "--topic", "image=/camera/image_raw"]) == 0
+    assert "no settings" in capsys.readouterr().out
     config = pathlib.Path(__file__).resolve().parents[2] / "config" / "EuRoC_mono.yaml"
-    assert main(["bag", "info", str(odd), "--config", str(config)]) == 0
-    assert "--topic image=TOPIC" in capsys.readouterr().out
+    assert main(["bag", "info", str(odd), "--config", str(config), "--topic", "image=/camera/image_raw"]) == 0
+    assert "sequence: mono, 2 frames" in capsys.readouterr().out

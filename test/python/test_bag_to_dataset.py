@@ -17,6 +17,7 @@ from dynaorb.cli.main import main
 from dynaorb.ros.bag import (BagProvider, BagRunOptions, BagToDatasetOptions, BagWriteOptions, bag_to_dataset,
                              run_bag, write_dataset_bag)
 from dynaorb.ros.bag import messages as m
+from dynaorb.ros.bag.info import bag_info
 from dynaorb.ros.bag.poses import read_pose_topic, read_tf, sample
 from dynaorb.runner import RunOptions, run_dataset
 
@@ -147,6 +148,40 @@ def test_camera_info_it_cannot_use_is_named(tmp_path):
             w.write(info, m.stamp_ns(t), m.serialize(msg))
     with pytest.raises(ValueError, match="equidistant"):
         BagProvider(bag, topics={"image": "/cam/image_raw"})
+
+
+def test_tum_named_bag_takes_the_benchmarks_camera_not_its_camera_info(tmp_path, synth_rgbd):
+    """TUM's own bags (rgbd_dataset_freiburgN_*.bag) carry the driver's default
+    camera_info: the name picks ORB-SLAM2's TUM1/2/3 calibration, as a TUM folder's does."""
+    bag = tmp_path / "seq.bag"
+    write_dataset_bag(BagWriteOptions(kind="tum", path=str(synth_rgbd), out=str(bag)))
+    bare = without_sidecars(bag, tmp_path)
+    tum = bare.rename(bare.with_name("rgbd_dataset_freiburg2_desk.bag"))
+    provider = BagProvider(tum)
+    s = provider.default_settings()
+    assert not provider.settings_from_camera_info
+    assert (s.fx, s.fy, s.depth_map_factor) == (520.908620, 521.007327, 5208.0)
+    assert "freiburg2" in s.source and tum.name in s.source
+    assert any("chosen by the bag's name" in w for w in provider.warnings)
+    provider.close()
+    info = bag_info(tum)
+    assert "freiburg2" in info["sequence"]["settings"]
+    given = BagProvider(tum, settings=str(synth_rgbd / "settings.yaml"))  # --config still wins
+    assert given.default_settings().fx != 520.908620 and not any("bag's name" in w for w in given.warnings)
+    given.close()
+    assert core().tum_settings_for_name("rgbd_dataset_freiburg1_xyz.bag").fx == 517.306408
+    assert core().tum_settings_for_name("robot.bag") is None
+
+
+def test_a_bag_without_images_is_named_before_missing_settings(tmp_path):
+    bag = tmp_path / "status.bag"  # no images, no settings beside it, no camera_info
+    with Writer(bag) as w:
+        conn = w.add_connection("/status", "std_msgs/msg/String", typestore=m.TYPESTORE)
+        w.write(conn, m.stamp_ns(1.0), m.TYPESTORE.serialize_ros1(m.TYPESTORE.types["std_msgs/msg/String"](data="up"),
+                                                                  "std_msgs/msg/String"))
+    with pytest.raises(ValueError, match="no image topic"):
+        BagProvider(bag)
+    assert "no image topic" in bag_info(bag)["sequence"]["error"]
 
 
 # ------------------------------------------------------------------ ground truth from a topic

@@ -59,4 +59,10 @@ std::unique_ptr<DataProvider> open_tum(const std::string& path, const DatasetOpt
 std::unique_ptr<DataProvider> open_kitti(const std::string& path, const DatasetOptions& options);
 std::unique_ptr<DataProvider> open_euroc(const std::string& path, const DatasetOptions& options);
 
+// The TUM RGB-D benchmark's camera (ORB-SLAM2's TUM1/2/3.yaml: intrinsics,
+// distortion, DepthMapFactor) for a name that names freiburg1, 2 or 3 (a TUM
+// sequence's folder, or TUM's own bag rgbd_dataset_freiburgN_*.bag); nullopt
+// when it names none.
+std::optional<Settings> tum_settings_for_name(const std::string& name);
+
 }  // namespace dynaorb

@@ -9,8 +9,10 @@ DataProvider the runner uses (len, load, stamp, default_settings,
 ground_truth, sensor, warnings), so `dynaorb bag run` goes through the same
 runner and core as `dynaorb run`.
 
-Settings: a settings YAML given, or BAG-stem.settings.yaml beside the bag, or,
-for a bag recorded on a robot with neither, the camera's own CameraInfo
+Settings: a settings YAML given, or BAG-stem.settings.yaml beside the bag, or
+the TUM benchmark's camera for a bag named like TUM's own
+(rgbd_dataset_freiburgN_*.bag; their camera_info is the driver's default), or,
+for a bag recorded on a robot with none of these, the camera's own CameraInfo
 topics (the image topic's sibling camera_info; dynaorb.ros.bag.camera_info).
 Ground truth: a TUM file given, or BAG-stem.groundtruth.tum, or a stamped
 pose topic in the bag (ground_truth_topic; dynaorb.ros.bag.poses).
@@ -61,7 +63,7 @@ class BagProvider:
                  ground_truth_tf: tuple[str, str] | None = None):
         """path: a bag, or the parts of a split recording in order (read as one;
         sidecars are the first part's); settings: a Settings object or YAML path (default: BAG-stem.settings.yaml,
-        else the bag's camera_info); topics: role -> topic overrides (image, right,
+        else TUM's camera for a bag named rgbd_dataset_freiburgN_*, else the bag's camera_info); topics: role -> topic overrides (image, right,
         depth, labels); ground_truth: a TUM file (default: BAG-stem.groundtruth.tum
         when present); ground_truth_topic: a stamped pose topic of the bag instead;
         ground_truth_tf: (parent, child) frames of the bag's TF instead."""
@@ -73,13 +75,10 @@ class BagProvider:
             available = {c.topic: c.msgtype for c in reader.connections}
         if sum(bool(g) for g in (ground_truth, ground_truth_topic, ground_truth_tf)) > 1:
             raise ValueError("give the ground truth one way: a file, a pose topic or TF frames, not several")
-        self._settings = self._load_settings(settings, available)
-        self.settings_from_camera_info = self._settings is None
         self._ground_truth_file = pathlib.Path(ground_truth) if ground_truth else sidecar(self.path, "groundtruth.tum")
         if ground_truth and not self._ground_truth_file.is_file():
             raise FileNotFoundError(f"{ground_truth}: ground truth file does not exist")
-        self._ground_truth_topic = (read_pose_topic(self.paths, ground_truth_topic) if ground_truth_topic else
-                                    read_tf(self.paths, *ground_truth_tf) if ground_truth_tf else None)
+        # What the bag lacks to be a sequence is named before what is missing beside it.
         self.topics = self._choose_topics(available, topics or {}, sensor, use_labels)
         self.sensor = sensor or ("rgbd" if self.topics.get("depth") else "stereo" if self.topics.get("right")
                                  else "mono")
@@ -92,6 +91,10 @@ class BagProvider:
         for role in ROLES:
             if role not in need and role != "labels":
                 self.topics.pop(role, None)
+        self._settings = self._load_settings(settings, available)
+        self.settings_from_camera_info = self._settings is None
+        self._ground_truth_topic = (read_pose_topic(self.paths, ground_truth_topic) if ground_truth_topic else
+                                    read_tf(self.paths, *ground_truth_tf) if ground_truth_tf else None)
         self.max_diff = max_diff
         self._index()
         if self._settings is None:
@@ -108,6 +111,14 @@ class BagProvider:
         if settings is None:
             default = sidecar(self.path, "settings.yaml")
             if not default.is_file():
+                tum = _core.tum_settings_for_name(self.path.name) if self.sensor != "stereo" else None
+                if tum is not None:
+                    # TUM's own bags (rgbd_dataset_freiburgN_*.bag) carry the
+                    # driver's default camera_info, not the benchmark's calibration.
+                    self.warnings.append(f"settings: {tum.source}, the TUM benchmark's calibration (ORB-SLAM2's "
+                                         f"TUM1/2/3.yaml), chosen by the bag's name; give --config to choose others")
+                    tum.source = f"{tum.source} (named by {self.path.name})"
+                    return tum
                 if m.CAMERA_INFO in available.values():
                     return None
                 raise ValueError(f"{self.path}: no settings (give --config, or keep {default.name} beside the bag; "
