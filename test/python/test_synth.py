@@ -124,3 +124,36 @@ def test_rejects_bad_config(tmp_path):
         generate(tmp_path, SynthConfig(frames=1))
     with pytest.raises(FileNotFoundError):
         generate(tmp_path / "x", SynthConfig(frames=2, textures=str(tmp_path / "no_textures_here")))
+
+
+def test_a_long_room_does_not_repeat_itself_and_a_short_one_is_unchanged():
+    """A room slab's texture tiles every 5.7 m: down a long room its floor,
+    ceiling and side walls come in pieces with textures of their own, so no place
+    looks like the one a period back; a short room keeps its six slabs."""
+    from dynaorb.synth.scene import LONG_ROOM_M, SEGMENT_M, build_scene
+    from dynaorb.synth.textures import TextureBank
+
+    def scene(duration: float, seed: int = 4):
+        rng = np.random.default_rng(seed)
+        return build_scene(TextureBank(rng, None), rng, movers=0, duration=duration, colour=False,
+                           long_room_bank=TextureBank(np.random.default_rng([seed, 1]), None))
+
+    short = scene(59 / 20)
+    assert [b.name for b in short.boxes[:6]] == ["floor", "ceiling", "wall_left", "wall_right", "wall_back",
+                                                "wall_front"]
+    long = scene(1499 / 20)
+    floor = sorted((b for b in long.boxes if b.name.startswith("floor")), key=lambda b: b.lo[2])
+    length = floor[-1].hi[2] - floor[0].lo[2]
+    assert length > LONG_ROOM_M and len(floor) == int(np.ceil(length / SEGMENT_M))
+    assert all(b.hi[2] - b.lo[2] <= SEGMENT_M + 1e-9 for b in floor)
+    np.testing.assert_allclose([b.lo[2] for b in floor[1:]], [b.hi[2] for b in floor[:-1]])  # no gaps
+    textures = [b.texture[0].tobytes() for b in floor]
+    assert len(set(textures)) == len(textures)
+    # The furniture and the draws after the slabs are those of the unsplit room.
+    unsplit = [b for b in long.boxes if not any(b.name.startswith(n) for n in ("floor", "ceiling", "wall_"))]
+    rng = np.random.default_rng(4)
+    same = build_scene(TextureBank(rng, None), rng, movers=0, duration=1499 / 20, colour=False,
+                       long_room_bank=TextureBank(np.random.default_rng(99), None))
+    again = [b for b in same.boxes if not any(b.name.startswith(n) for n in ("floor", "ceiling", "wall_"))]
+    assert [(b.name, b.lo.tolist(), b.texture[0].tobytes()) for b in unsplit] == \
+           [(b.name, b.lo.tolist(), b.texture[0].tobytes()) for b in again]

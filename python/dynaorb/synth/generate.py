@@ -109,7 +109,8 @@ def generate(out: str | pathlib.Path, config: SynthConfig, progress=None) -> dic
     if c.path == "loop":
         scene = build_loop_scene(bank, rng, duration=duration, colour=c.sensor == "rgbd", period=c.lap_period)
     else:
-        scene = build_scene(bank, rng, movers=c.movers, duration=duration, colour=c.sensor == "rgbd")
+        scene = build_scene(bank, rng, movers=c.movers, duration=duration, colour=c.sensor == "rgbd",
+                            long_room_bank=TextureBank(np.random.default_rng([c.seed, 1]), source))
     K = _intrinsics(c)
     renderer = Renderer(K, c.width, c.height)
     layout = _Layout(out, c)

@@ -131,6 +131,35 @@ def room_slabs(tex, z_min: float, z_max: float) -> list[Box]:
             for name, (lo, hi) in slabs.items()]
 
 
+# A room longer than LONG_ROOM_M has its floor, ceiling and side walls in
+# pieces of SEGMENT_M along z, each with its own texture. A room slab's texture
+# (1024 texels at 180 per metre) repeats every 5.7 m, and down a long room that
+# period makes every place look like the one 5.7 m back: on a 1500-frame stereo
+# sequence (60 m) dynaorb and ORB-SLAM3 both closed loops on it that are not
+# there (ATE 15.7 / 18.2 m). Shorter rooms (a 60-frame sequence's is 14.4 m)
+# are rendered as before, texel for texel: the pieces' textures come from a
+# texture bank of their own, so the scene's other draws do not move.
+LONG_ROOM_M = 30.0
+SEGMENT_M = 5.0
+_LONG_SLABS = ("floor", "ceiling", "wall_left", "wall_right")
+
+
+def split_long_slabs(boxes: list[Box], tex, z_min: float, z_max: float) -> list[Box]:
+    """The room's long slabs cut into SEGMENT_M pieces along z, the first keeping
+    its texture, the others taking tex(1024) each; other boxes as they are."""
+    edges = list(np.arange(z_min, z_max, SEGMENT_M)) + [z_max]
+    out = []
+    for b in boxes:
+        if b.name not in _LONG_SLABS:
+            out.append(b)
+            continue
+        for k, (a, c) in enumerate(zip(edges[:-1], edges[1:])):
+            lo, hi = b.lo.copy(), b.hi.copy()
+            lo[2], hi[2] = a, c
+            out.append(Box(f"{b.name}_{k}", lo, hi, b.texture if k == 0 else tex(1024), b.texels_per_m))
+    return out
+
+
 def build_loop_scene(bank: TextureBank, rng: np.random.Generator, *, duration: float, colour: bool,
                      period: float = 12.0) -> Scene:
     """A closed room (8.4 m x 11.4 m) with furniture along all four walls and a block in
@@ -165,18 +194,24 @@ def build_loop_scene(bank: TextureBank, rng: np.random.Generator, *, duration: f
 
 
 def build_scene(bank: TextureBank, rng: np.random.Generator, *, movers: int, duration: float,
-                colour: bool) -> Scene:
+                colour: bool, long_room_bank: TextureBank | None = None) -> Scene:
     """The room, static furniture, a parked car, and `movers` moving objects.
 
     Mover 0 is a person crossing; mover 1 a vehicle travelling beside the camera
     in its direction of motion (its points satisfy the epipolar constraint);
     further movers are more people crossing at other times and distances.
+    long_room_bank: where a long room's slab pieces take their textures
+    (split_long_slabs; default: `bank`).
     """
     tex = (lambda size=512: pyramid(bank.colour(size))) if colour else (lambda size=512: pyramid(bank.grey(size)))
     path = CameraPath()
     length = path.speed * duration
     z_min, z_max = -3.0, length + 9.0
     boxes = room_slabs(tex, z_min, z_max)
+    if z_max - z_min > LONG_ROOM_M:
+        extra = long_room_bank or bank
+        boxes = split_long_slabs(boxes, (lambda size: pyramid(extra.colour(size))) if colour else
+                                 (lambda size: pyramid(extra.grey(size))), z_min, z_max)
     # Static furniture along the walls (depth structure for the tracker).
     z = 1.0
     while z < z_max - 2.0:
