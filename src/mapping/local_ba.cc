@@ -1,6 +1,7 @@
 // Local mapping: bundle adjustment of the covisible window (ORB-SLAM Sec.
 // VI-E). The problem is copied out under the map lock, solved unlocked (so
 // tracking goes on) and written back under the lock.
+#include <algorithm>
 #include <unordered_map>
 
 #include "dynaorb/mapping/local_mapper.h"
@@ -16,6 +17,7 @@ void LocalMapper::local_bundle_adjustment(KeyFrame& kf) {
   std::vector<std::shared_ptr<KeyFrame>> kfs;           // index -> keyframe
   std::vector<std::shared_ptr<MapPoint>> points;        // index -> point
   std::vector<std::pair<KeyFrame*, int>> obs_slots;     // index -> (keyframe, keypoint)
+  size_t n_local = 0;                                   // kfs[0, n_local): optimised; the rest fixed
   {
     std::lock_guard<std::mutex> lk(map_.mutex());
     if (kf.erased() || map_.keyframe_count() <= 2) return;
@@ -28,7 +30,7 @@ void LocalMapper::local_bundle_adjustment(KeyFrame& kf) {
     add_kf(&kf, false);
     for (KeyFrame* k : kf.covisibles())
       if (!k->erased()) add_kf(k, false);
-    const size_t n_local = kfs.size();
+    n_local = kfs.size();
     std::unordered_map<const MapPoint*, int> point_index;
     for (size_t i = 0; i < n_local; ++i) {
       for (const auto& p : kfs[i]->points()) {
@@ -68,6 +70,9 @@ void LocalMapper::local_bundle_adjustment(KeyFrame& kf) {
     std::lock_guard<std::mutex> c_lk(queue_mutex_);
     ++counters_.local_ba_runs;
     if (r.aborted) ++counters_.local_ba_aborted;
+    counters_.local_ba_window_last = static_cast<long>(n_local);
+    counters_.local_ba_fixed_last = static_cast<long>(kfs.size() - n_local);
+    counters_.local_ba_window_max = std::max(counters_.local_ba_window_max, counters_.local_ba_window_last);
   }
   std::lock_guard<std::mutex> lk(map_.mutex());
   // Outlier observations leave the map first, then the estimates go back.

@@ -423,6 +423,9 @@ PYBIND11_MODULE(_core, m) {
         d["keyframes_culled"] = m.mapping.keyframes_culled;
         d["local_ba_runs"] = m.mapping.local_ba_runs;
         d["local_ba_aborted"] = m.mapping.local_ba_aborted;
+        d["local_ba_window_last"] = m.mapping.local_ba_window_last;
+        d["local_ba_fixed_last"] = m.mapping.local_ba_fixed_last;
+        d["local_ba_window_max"] = m.mapping.local_ba_window_max;
         d["loop_keyframes_checked"] = m.loop.keyframes;
         d["loop_candidates"] = m.loop.candidates;
         d["loops_closed"] = m.loop.loops_closed;

@@ -136,15 +136,20 @@ def test_mapping_and_loop_options_reach_the_system(data):
     assert core().LoopCloserOptions().ransac.min_inliers == 20
     provider = core().open_dataset("kitti", str(data / "kitti/sequences/06"), "stereo")
     settings = provider.default_settings()
-    runs = {}
+    runs, summaries = {}, {}
     for local_ba in (True, False):
         o.local_ba = local_ba
         system = core().System(settings, "stereo", synchronous_mapping=True, mapping=o,
                                loop=core().LoopCloserOptions())
         for i in range(12):
             system.track_frame(provider.load(i), None, None)
-        runs[local_ba] = system.map_summary()["local_ba_runs"]
+        summaries[local_ba] = s = system.map_summary()
+        runs[local_ba] = s["local_ba_runs"]
     assert runs[True] > 0 and runs[False] == 0
+    # The last window: the new keyframe and its covisibles optimised, fixed ones around them.
+    s = summaries[True]
+    assert 2 <= s["local_ba_window_last"] <= s["local_ba_window_max"] <= s["keyframes"]
+    assert s["local_ba_fixed_last"] >= 0 and summaries[False]["local_ba_window_max"] == 0
 
 
 def test_mapping_and_loop_options_are_checked(data, tmp_path):

@@ -80,6 +80,10 @@ void option_fields(const LocalMapperOptions*, F&& f) {
 struct LocalMapperCounters {
   long keyframes = 0, points_created = 0, points_culled = 0, points_fused = 0;
   long keyframes_culled = 0, local_ba_runs = 0, local_ba_aborted = 0;
+  // The last local BA's window: keyframes optimised (the new one and its
+  // covisibles) and keyframes held fixed (seeing its points from outside);
+  // the most keyframes any window optimised.
+  long local_ba_window_last = 0, local_ba_fixed_last = 0, local_ba_window_max = 0;
 };
 
 class LocalMapper {
