@@ -62,9 +62,10 @@ class BagProvider:
                  use_labels: bool = True, ground_truth_topic: str | None = None,
                  ground_truth_tf: tuple[str, str] | None = None):
         """path: a bag, or the parts of a split recording in order (read as one;
-        sidecars are the first part's); settings: a Settings object or YAML path (default: BAG-stem.settings.yaml,
-        else TUM's camera for a bag named rgbd_dataset_freiburgN_*, else the bag's camera_info); topics: role -> topic overrides (image, right,
-        depth, labels); ground_truth: a TUM file (default: BAG-stem.groundtruth.tum
+        sidecars are the first part's); settings: a Settings object or YAML path
+        (default: BAG-stem.settings.yaml, else TUM's camera for a bag named
+        rgbd_dataset_freiburgN_*, else the bag's camera_info); topics: role ->
+        topic overrides (image, right, depth, labels); ground_truth: a TUM file (default: BAG-stem.groundtruth.tum
         when present); ground_truth_topic: a stamped pose topic of the bag instead;
         ground_truth_tf: (parent, child) frames of the bag's TF instead."""
         _core = core()
