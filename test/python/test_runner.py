@@ -141,6 +141,40 @@ def test_ctrl_c_stops_between_frames_and_keeps_the_outputs(tmp_path, synth_rgbd)
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
+def test_a_frame_range_runs_those_frames_only(tmp_path, synth_rgbd):
+    from dynaorb import core
+    from dynaorb.cli.main import main
+
+    stats = run_dataset(RunOptions(kind="tum", path=str(synth_rgbd), out=str(tmp_path / "a"), vocabulary="none",
+                                   frames="2:6", progress=False))
+    assert stats["frames"] == 4 and stats["frame_range"] == [2, 6] and stats["dataset"]["frames"] == 8
+    assert [f["index"] for f in stats["per_frame"]] == [2, 3, 4, 5]
+    assert stats["init_frame"] == 2 and stats["tracked_fraction"] == stats["tracked_fraction_after_init"] == 1.0
+    rows = [l.split() for l in (tmp_path / "a" / "trajectory.tum").read_text().splitlines() if not l.startswith("#")]
+    provider = core().open_dataset("tum", str(synth_rgbd), None)
+    assert [float(r[0]) for r in rows] == pytest.approx([provider.stamp(i) for i in range(2, 6)], abs=1e-6)
+    assert stats["matched_poses"] == 4
+    # Ctrl-C within a range: the fractions are over the frames of the range run.
+    cut = run_dataset(RunOptions(kind="tum", path=str(synth_rgbd), out=str(tmp_path / "b"), vocabulary="none",
+                                 frames=(3, None), provider=_CtrlCAt(provider, at=6), progress=False))
+    assert cut["interrupted"] == {"frames_run": 3} and cut["tracked_fraction"] == 1.0
+    assert cut["tracked_fraction_after_init"] == 1.0
+    assert main(["run", "tum", str(synth_rgbd), "--out", str(tmp_path / "c"), "--vocabulary", "none", "--quiet",
+                 "--frames", ":3"]) == 0
+    assert json.loads((tmp_path / "c" / "stats.json").read_text())["frame_range"] == [0, 3]
+
+
+@pytest.mark.parametrize("spec,message", [("5:2", "no frame"), ("8:", "no frame"), ("a:3", "whole numbers"),
+                                          ("1:2:3", "START:END"), ("-1:4", "from 0"), ("3", "START:END")])
+def test_a_frame_range_that_is_wrong_is_named(spec, message):
+    from dynaorb.runner.frames import frame_range
+
+    with pytest.raises(ValueError, match=message):
+        frame_range(spec, 8)
+    assert frame_range("6:100", 8) == range(6, 8) and frame_range(None, 8) == range(8)
+    assert frame_range(":", 8) == range(8) and frame_range((2, None), 8) == range(2, 8)
+
+
 def test_cli_ctrl_c_writes_the_frames_so_far(tmp_path, data):
     """`dynaorb run` paced at half KITTI 06's rate, Ctrl-C once its progress bar has passed frame 5."""
     proc = subprocess.Popen([sys.executable, "-m", "dynaorb", "run", "kitti", str(data / "kitti" / "sequences" / "06"),

@@ -23,7 +23,7 @@ def _exit_status(stats: dict) -> int:
 
 def _runner_fields(args) -> dict:
     """What main._runner_args reads, by RunOptions' field names (`run` and `bag run`)."""
-    return dict(out=args.out, dynamic=args.dynamic, masks=args.masks, labels=args.labels,
+    return dict(out=args.out, frames=args.frames, dynamic=args.dynamic, masks=args.masks, labels=args.labels,
                 save_masks=args.save_masks, labels_delay=args.labels_delay,
                 propagate_labels=not args.no_label_propagation, vocabulary=args.vocabulary,
                 segment=args.segment, segment_mode=args.segment_mode, segment_threads=args.segment_threads,

@@ -35,6 +35,9 @@ def _runner_args(p: argparse.ArgumentParser, default_out: str) -> None:
     bag's frames by stamp (<stamp>.png, 6 decimals, as `bag to-dataset` names
     TUM-layout images)."""
     p.add_argument("--out", default=default_out, help=f"output folder (default {default_out})")
+    p.add_argument("--frames", metavar="START:END",
+                   help="run only these frames (numbers from 0, END not included; '500:' or ':300' leave a side "
+                        "open); the outputs and the evaluation cover them")
     p.add_argument("--dynamic", default="off", metavar="PRESET|FILE",
                    help="dynamic-object front end: a preset of config/dynamic/ (off, stdyn, dm, ddl, li, full) "
                         "or a preset YAML file (default off)")

@@ -10,10 +10,31 @@ from dynaorb import core
 log = logging.getLogger(__name__)
 
 
-def readable_frames(provider, counts: collections.Counter, progress: bool, desc: str):
-    """(index, frame) for every frame that loads; the others are logged and
-    counted in counts["unreadable"]."""
-    indices = range(len(provider))
+def frame_range(spec, n: int) -> range:
+    """The frames to run of a sequence of n: spec None (all), "START:END" (END
+    not included; either side may be empty) or a (start, end) pair. ValueError
+    naming what is wrong: not two numbers, negative, or no frame of the
+    sequence in the range (an END past the last frame runs to the last)."""
+    if spec is None:
+        return range(n)
+    parts = spec.split(":") if isinstance(spec, str) else list(spec)
+    if len(parts) != 2:
+        raise ValueError(f"frames {spec!r}: give START:END (frame numbers from 0, END not included)")
+    try:
+        start, end = (int(p) if str(p).strip() not in ("", "None") else d for p, d in zip(parts, (0, n)))
+    except ValueError:
+        raise ValueError(f"frames {spec!r}: START and END must be whole numbers") from None
+    if start < 0 or end < 0:
+        raise ValueError(f"frames {spec!r}: frame numbers count from 0")
+    if start >= min(end, n):
+        raise ValueError(f"frames {spec!r}: no frame of the sequence's {n} (0-{n - 1}) in that range")
+    return range(start, min(end, n))
+
+
+def readable_frames(provider, counts: collections.Counter, progress: bool, desc: str, indices: range | None = None):
+    """(index, frame) for every frame of `indices` (default: all) that loads;
+    the others are logged and counted in counts["unreadable"]."""
+    indices = range(len(provider)) if indices is None else indices
     if progress:
         from tqdm import tqdm
 

@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 
 from dynaorb import core
-from dynaorb.runner.frames import frame_file_name, readable_frames
+from dynaorb.runner.frames import frame_file_name, frame_range, readable_frames
 from dynaorb.runner.interrupt import StopOnInterrupt
 from dynaorb.runner.label_delay import DelayedLabels
 from dynaorb.runner.masks import LabelFolder, MaskFolder
@@ -99,6 +99,10 @@ class RunOptions:
     segment_nice: int = DEFAULT_NICE
     max_mask_age: int = 30
     progress: bool = True
+    # Only these frames of the sequence: "START:END" (frame numbers from 0, END
+    # not included; either may be left out, as "500:" or ":300"), or a
+    # (start, end) pair. None: all.
+    frames: object = None
     # Map each keyframe before tracking the next frame: repeatable runs. False
     # runs local mapping concurrently, as a live camera would.
     synchronous_mapping: bool = True
@@ -391,6 +395,7 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict, stop: Stop
     provider = opts.provider if opts.provider is not None else _core.open_dataset(opts.kind, opts.path, opts.sensor)
     for w in provider.warnings:
         log.warning("%s: %s", opts.path, w)
+    selected = frame_range(opts.frames, len(provider))
     settings = _settings(provider, opts.config)
     vocabulary = _vocabulary(opts.vocabulary)
     if opts.load_map and vocabulary is None:
@@ -451,7 +456,8 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict, stop: Stop
     mask_ages = []
     start = time.perf_counter()
     stop.install()  # Ctrl-C from here: the loop ends after the frame it is on
-    for i, frame in readable_frames(provider, skipped, opts.progress, f"{opts.kind} {pathlib.Path(opts.path).name}"):
+    for i, frame in readable_frames(provider, skipped, opts.progress, f"{opts.kind} {pathlib.Path(opts.path).name}",
+                                    indices=selected):
         if stop.requested:
             break
         name = frame_file_name(frame)
@@ -541,7 +547,8 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict, stop: Stop
     write_ply(out / "map_points.ply", system.map_points())
     counters = system.counters()
     # An interrupted run's fractions are over the frames it came to.
-    frames_run = len(provider) if not stop.requested else (frame_records[-1]["index"] + 1 if frame_records else 0)
+    frames_run = (len(selected) if not stop.requested else
+                  (frame_records[-1]["index"] + 1 - selected.start if frame_records else 0))
     stats = {
         "dataset": {"kind": opts.kind, "path": str(opts.path), "sensor": provider.sensor,
                     "frames": len(provider), "warnings": list(provider.warnings)},
@@ -560,7 +567,9 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict, stop: Stop
             "summary": _dynamic_summary(dynamic_frames),
             "per_frame": dynamic_frames,
         },
-        "frames": len(provider),
+        "frames": len(selected),
+        # The frames run (--frames), [start, end) of the sequence's; None: all of them.
+        "frame_range": [selected.start, selected.stop] if len(selected) < len(provider) else None,
         # Ctrl-C: the run stopped after this many of the frames (its outputs are theirs); None: it ran to the end.
         "interrupted": {"frames_run": frames_run} if stop.requested else None,
         "frames_skipped": dict(skipped),
@@ -570,7 +579,7 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict, stop: Stop
         # The first frame tracked (for monocular: the initialisation frame) and
         # the share of the frames from there on that were tracked.
         "init_frame": ok_frames[0] if ok_frames else None,
-        "tracked_fraction_after_init": (len(ok_frames) / (frames_run - ok_frames[0])
+        "tracked_fraction_after_init": (len(ok_frames) / (selected.start + frames_run - ok_frames[0])
                                         if ok_frames else 0.0),
         "states": dict(states),
         "tracking_methods": dict(methods),
