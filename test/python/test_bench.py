@@ -115,6 +115,19 @@ def test_suites_cover_sensors_and_list_what_is_not_run(tmp_path, data):
                    for n in full.not_run), full.not_run
 
 
+def test_the_long_suite_runs_one_render_as_stereo_and_as_monocular(tmp_path, data):
+    from dynaorb.bench.suites import LONG_FRAMES
+
+    long = build_suite("long", data, tmp_path)
+    assert {c.key for c in long.cases} == {f"synth/long_{LONG_FRAMES}:{s}:{p}" for s in ("stereo", "mono")
+                                           for p in ("off", "full")}
+    stereo, mono = long.sequences
+    assert stereo.path == mono.path and stereo.synthetic == mono.synthetic  # rendered once
+    assert stereo.synthetic["frames"] == LONG_FRAMES and stereo.synthetic["movers"] == 0
+    with pytest.raises(ValueError, match="unknown suite"):
+        build_suite("longer", data, tmp_path)
+
+
 def test_resume_takes_finished_runs_from_their_folders(tiny_suite):
     from dynaorb.bench.suite_runner import BenchOptions, run_suite
 

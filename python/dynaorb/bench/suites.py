@@ -1,4 +1,4 @@
-"""The cases of `dynaorb bench --suite quick|full`: (sequence, sensor, dynamic preset).
+"""The cases of `dynaorb bench --suite quick|full|long`: (sequence, sensor, dynamic preset).
 
 Every sequence runs in `off` mode and with every preset of config/dynamic/
 that has a stage for its sensor; pairs a preset cannot run (no stage for the
@@ -67,6 +67,12 @@ SYNTH = {
     "full": [(s, m) for s in ("rgbd", "stereo", "mono") for m in (0, 3)],
 }
 TUM_FRAGMENT = "tum/rgbd_dataset_freiburg3_walking_xyz_fragment"
+# The long suite: a 1500-frame synthetic stereo walk down a 62 m room (75 s,
+# no movers), run as stereo and as monocular on its left images, for what the
+# real clips here are too short to show (map growth, local BA windows, memory,
+# drift, false loops; ../shared/data has nothing longer than 250 frames).
+LONG_FRAMES = 1500
+LONG_SEED = 4
 
 
 def synth_sequence(sensor: str, movers: int, root: pathlib.Path, frames: int = SYNTH_FRAMES,
@@ -140,10 +146,20 @@ def cases_for(sequences: list[Sequence], presets: tuple[str, ...] | None = None)
     return cases, not_run
 
 
+def long_sequences(root: pathlib.Path) -> list[Sequence]:
+    """The long suite's sequences: the stereo render, and its left images as monocular."""
+    stereo = synth_sequence("stereo", 0, root, frames=LONG_FRAMES, seed=LONG_SEED)
+    mono = dataclasses.replace(stereo, sensor="mono")
+    return [dataclasses.replace(s, name=f"synth/long_{LONG_FRAMES}") for s in (stereo, mono)]
+
+
 def build_suite(name: str, data: pathlib.Path, synth_root: pathlib.Path,
                 presets: tuple[str, ...] | None = None) -> Suite:
+    if name == "long":
+        cases, skipped = cases_for(long_sequences(synth_root), presets if presets is not None else ("full",))
+        return Suite(name, cases, long_sequences(synth_root), skipped)
     if name not in REAL:
-        raise ValueError(f"unknown suite {name!r} (quick, full)")
+        raise ValueError(f"unknown suite {name!r} (quick, full, long)")
     sequences, not_run = [], []
     for seq_name, kind, rel, sensors in REAL[name]:
         path = data / rel

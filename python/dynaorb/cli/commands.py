@@ -168,11 +168,11 @@ def cmd_bench(args) -> int:
         if args.readme:
             _write_readme(out)
         return 0
-    if args.realtime and args.suite not in ("quick", "full"):
+    if args.realtime and args.suite not in ("quick", "full", "long"):
         print("dynaorb bench: --realtime paces the quick and full suites' runs; the seeds suite maps "
               "synchronously and the segmentation suite times the network", file=sys.stderr)
         return 2
-    if args.suite in ("quick", "full"):
+    if args.suite in ("quick", "full", "long"):
         from dynaorb.bench.suite_runner import BenchOptions, run_suite
         from dynaorb.runner.pacing import Pacer
 
@@ -184,7 +184,7 @@ def cmd_bench(args) -> int:
                 return 2
         run_suite(BenchOptions(suite=args.suite, out=args.out, runs=args.runs or 3, peer=not args.no_peer,
                                peer_venv=args.peer_venv, segment_model=_bench_network(args),
-                               resume=args.resume, realtime=args.realtime))
+                               resume=args.resume, realtime=args.realtime, synth_root=args.synth_root))
         print((out / "report.md").read_text())
         if args.readme:
             _write_readme(out)

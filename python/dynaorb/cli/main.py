@@ -191,16 +191,18 @@ def build_parser() -> argparse.ArgumentParser:
     vd.set_defaults(func=commands.cmd_vocab_default)
 
     b = sub.add_parser("bench", help="benchmarks (speed as medians; JSON and a Markdown report)")
-    b.add_argument("--suite", choices=["segmentation", "quick", "full", "seeds"],
+    b.add_argument("--suite", choices=["segmentation", "quick", "full", "long", "seeds"],
                    help="segmentation: network latency per model, back end and thread count, and SLAM "
                         "fps without / with synchronous / with asynchronous segmentation; quick: a few "
                         "sequences (EuRoC V1_01 stereo, KITTI 06, synthetic RGB-D and stereo with movers); "
                         "full: every sequence and sensor of ../shared/data and the synthetic suite with and "
                         "without movers; both in off mode and every dynamic preset, against ORB-SLAM3; "
+                        "long: a 1500-frame synthetic walk down a 62 m room, stereo and monocular, off and full, "
+                        "against ORB-SLAM3 (rendered once, about 20 min); "
                         "seeds: the end-to-end accuracy targets (full, ground-truth masks and off against the "
                         "static room) over many synthetic seeds per sensor (OUT/seeds.md)")
     b.add_argument("--out", default="out/bench", help="output folder (default out/bench)")
-    b.add_argument("--runs", type=int, help="runs per case (quick/full, default 3) or timed runs per model and "
+    b.add_argument("--runs", type=int, help="runs per case (quick/full/long, default 3) or timed runs per model and "
                                             "thread count (segmentation, default 10)")
     b.add_argument("--seeds", default="12", metavar="N|A-B|LIST",
                    help="seeds: how many (0..N-1), a range or a comma list (default 12)")
@@ -213,7 +215,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--preset", default="full",
                    help="seeds: what the full and full_static conditions run, a preset name or YAML file (default full)")
     b.add_argument("--synth-root", metavar="DIR",
-                   help="seeds: where the rendered sequences are cached (default OUT/synth)")
+                   help="seeds, quick/full/long: where the rendered sequences are cached (default OUT/synth)")
     b.add_argument("--jobs", type=int, default=1,
                    help="seeds: runs at a time (default 1; the runs map synchronously, so their ATE does not "
                         "depend on it)")
@@ -221,19 +223,19 @@ def build_parser() -> argparse.ArgumentParser:
         b.add_argument(flag, metavar="KEY=VALUE", action="append", default=[],
                        help=f"seeds: a {what} option for every dynaorb run, as `dynaorb run {flag}` "
                             "(repeatable; a variant under test against the defaults of another --out)")
-    b.add_argument("--no-peer", action="store_true", help="quick/full: without the ORB-SLAM3 comparison")
+    b.add_argument("--no-peer", action="store_true", help="quick/full/long: without the ORB-SLAM3 comparison")
     b.add_argument("--realtime", type=float, nargs="?", const=1.0, default=0.0, metavar="RATE",
-                   help="quick/full: deliver the frames to dynaorb and to ORB-SLAM3 alike at RATE times the "
+                   help="quick/full/long: deliver the frames to dynaorb and to ORB-SLAM3 alike at RATE times the "
                         "recording's rate by their stamps (default without the option: as fast as the track "
                         "calls take them; the option alone: 1, as a camera or `rosbag play` delivers them)")
     b.add_argument("--peer-venv", metavar="DIR",
-                   help="quick/full/seeds: virtual environment for pyorbslam3 (default ~/.cache/dynaorb/peer/orbslam3-venv; "
+                   help="quick/full/long/seeds: virtual environment for pyorbslam3 (default ~/.cache/dynaorb/peer/orbslam3-venv; "
                         "created and installed on first use)")
     b.add_argument("--readme", action="store_true",
                    help="write the README's Results section from OUT/results.json (after the run; "
                         "alone, without --suite, from a finished run)")
     b.add_argument("--resume", action="store_true",
-                   help="quick/full/seeds: take each run whose OUT/runs folder holds a record for the same spec from "
+                   help="quick/full/long/seeds: take each run whose OUT/runs folder holds a record for the same spec from "
                         "there instead of running it again (a bench stopped part way goes on where it stopped; "
                         "the reused runs' times are from when they ran)")
     b.add_argument("--report-only", action="store_true",
