@@ -164,6 +164,22 @@ def test_a_frame_range_runs_those_frames_only(tmp_path, synth_rgbd):
     assert json.loads((tmp_path / "c" / "stats.json").read_text())["frame_range"] == [0, 3]
 
 
+def test_a_long_synchronous_run_mostly_mapping_says_async_mapping_exists(tmp_path, synth_rgbd, monkeypatch, caplog):
+    from dynaorb.runner import run as runner
+
+    monkeypatch.setattr(runner, "SYNC_HINT_MIN_WALL_S", 0.0)
+    monkeypatch.setattr(runner, "SYNC_HINT_SHARE", 0.0)  # any local mapping at all
+    with caplog.at_level("INFO", logger=runner.log.name):
+        run_dataset(RunOptions(kind="tum", path=str(synth_rgbd), out=str(tmp_path / "a"), vocabulary="none",
+                               progress=False))
+    assert "--async-mapping" in caplog.text
+    caplog.clear()
+    with caplog.at_level("INFO", logger=runner.log.name):
+        run_dataset(RunOptions(kind="tum", path=str(synth_rgbd), out=str(tmp_path / "b"), vocabulary="none",
+                               synchronous_mapping=False, progress=False))
+    assert "--async-mapping" not in caplog.text
+
+
 @pytest.mark.parametrize("spec,message", [("5:2", "no frame"), ("8:", "no frame"), ("a:3", "whole numbers"),
                                           ("1:2:3", "START:END"), ("-1:4", "from 0"), ("3", "START:END")])
 def test_a_frame_range_that_is_wrong_is_named(spec, message):
