@@ -169,7 +169,7 @@ def cmd_bench(args) -> int:
             _write_readme(out)
         return 0
     if args.realtime and args.suite not in ("quick", "full", "long"):
-        print("dynaorb bench: --realtime paces the quick and full suites' runs; the seeds suite maps "
+        print("dynaorb bench: --realtime paces the quick, full and long suites' runs; the seeds suite maps "
               "synchronously and the segmentation suite times the network", file=sys.stderr)
         return 2
     if args.suite in ("quick", "full", "long"):

@@ -135,7 +135,7 @@ def room_slabs(tex, z_min: float, z_max: float) -> list[Box]:
 # pieces of SEGMENT_M along z, each with its own texture. A room slab's texture
 # (1024 texels at 180 per metre) repeats every 5.7 m, and down a long room that
 # period makes every place look like the one 5.7 m back: on a 1500-frame stereo
-# sequence (60 m) dynaorb and ORB-SLAM3 both closed loops on it that are not
+# sequence (62 m) dynaorb and ORB-SLAM3 both closed loops on it that are not
 # there (ATE 15.7 / 18.2 m). Shorter rooms (a 60-frame sequence's is 14.4 m)
 # are rendered as before, texel for texel: the pieces' textures come from a
 # texture bank of their own, so the scene's other draws do not move.
