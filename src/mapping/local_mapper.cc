@@ -30,7 +30,7 @@ void LocalMapper::insert_keyframe(std::shared_ptr<KeyFrame> kf) {
     std::lock_guard<std::mutex> lk(queue_mutex_);
     queue_.push_back(std::move(kf));
   }
-  abort_ba_ = true;  // a running local BA gives way to the new keyframe
+  interrupt_ba();  // a running local BA gives way to the new keyframe
   queue_cv_.notify_one();
 }
 

@@ -150,6 +150,14 @@ def test_mapping_and_loop_options_reach_the_system(data):
     s = summaries[True]
     assert 2 <= s["local_ba_window_last"] <= s["local_ba_window_max"] <= s["keyframes"]
     assert s["local_ba_fixed_last"] >= 0 and summaries[False]["local_ba_window_max"] == 0
+    # Local BAs that a new keyframe may not abort (asynchronous mapping) all run to the end.
+    o.local_ba, o.abort_ba_for_keyframes = True, False
+    system = core().System(settings, "stereo", synchronous_mapping=False, mapping=o, loop=core().LoopCloserOptions())
+    for i in range(30):
+        system.track_frame(provider.load(i), None, None)
+    system.wait_for_mapping()
+    s = system.map_summary()
+    assert s["local_ba_runs"] > 0 and s["local_ba_aborted"] == 0
 
 
 def test_mapping_and_loop_options_are_checked(data, tmp_path):
