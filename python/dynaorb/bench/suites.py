@@ -156,8 +156,9 @@ def long_sequences(root: pathlib.Path) -> list[Sequence]:
 def build_suite(name: str, data: pathlib.Path, synth_root: pathlib.Path,
                 presets: tuple[str, ...] | None = None) -> Suite:
     if name == "long":
-        cases, skipped = cases_for(long_sequences(synth_root), presets if presets is not None else ("full",))
-        return Suite(name, cases, long_sequences(synth_root), skipped)
+        sequences = long_sequences(synth_root)
+        cases, skipped = cases_for(sequences, presets if presets is not None else ("full",))
+        return Suite(name, cases, sequences, skipped)
     if name not in REAL:
         raise ValueError(f"unknown suite {name!r} (quick, full, long)")
     sequences, not_run = [], []

@@ -116,6 +116,11 @@ class Scene:
         return [b for b in self.boxes if b.moving]
 
 
+def textures(bank: TextureBank, colour: bool):
+    """tex(size=512): the next texture of the bank as a mip pyramid, BGR or grey."""
+    return lambda size=512: pyramid(bank.colour(size) if colour else bank.grey(size))
+
+
 def room_slabs(tex, z_min: float, z_max: float) -> list[Box]:
     """The room between z_min and z_max: six slabs (floor, ceiling, four walls), each with its own texture."""
     W, T = ROOM_HALF_WIDTH, 0.2
@@ -164,7 +169,7 @@ def build_loop_scene(bank: TextureBank, rng: np.random.Generator, *, duration: f
                      period: float = 12.0) -> Scene:
     """A closed room (8.4 m x 11.4 m) with furniture along all four walls and a block in
     the middle, circled by a LoopPath: the camera comes back to the places it started from."""
-    tex = (lambda size=512: pyramid(bank.colour(size))) if colour else (lambda size=512: pyramid(bank.grey(size)))
+    tex = textures(bank, colour)
     path = LoopPath(period=period)
     W = ROOM_HALF_WIDTH
     z_min, z_max = path.zc - path.rz - 2.8, path.zc + path.rz + 2.8
@@ -203,15 +208,13 @@ def build_scene(bank: TextureBank, rng: np.random.Generator, *, movers: int, dur
     long_room_bank: where a long room's slab pieces take their textures
     (split_long_slabs; default: `bank`).
     """
-    tex = (lambda size=512: pyramid(bank.colour(size))) if colour else (lambda size=512: pyramid(bank.grey(size)))
+    tex = textures(bank, colour)
     path = CameraPath()
     length = path.speed * duration
     z_min, z_max = -3.0, length + 9.0
     boxes = room_slabs(tex, z_min, z_max)
     if z_max - z_min > LONG_ROOM_M:
-        extra = long_room_bank or bank
-        boxes = split_long_slabs(boxes, (lambda size: pyramid(extra.colour(size))) if colour else
-                                 (lambda size: pyramid(extra.grey(size))), z_min, z_max)
+        boxes = split_long_slabs(boxes, textures(long_room_bank or bank, colour), z_min, z_max)
     # Static furniture along the walls (depth structure for the tracker).
     z = 1.0
     while z < z_max - 2.0:
