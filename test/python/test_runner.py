@@ -181,7 +181,8 @@ def test_a_long_synchronous_run_mostly_mapping_says_async_mapping_exists(tmp_pat
 
 
 @pytest.mark.parametrize("spec,message", [("5:2", "no frame"), ("8:", "no frame"), ("a:3", "whole numbers"),
-                                          ("1:2:3", "START:END"), ("-1:4", "from 0"), ("3", "START:END")])
+                                          ("1:2:3", "START:END"), ("-1:4", "from 0"), ("3", "START:END"),
+                                          ("None:4", "whole numbers"), ((0.5, 4), "whole numbers")])
 def test_a_frame_range_that_is_wrong_is_named(spec, message):
     from dynaorb.runner.frames import frame_range
 

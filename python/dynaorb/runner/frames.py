@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import collections
 import logging
+import operator
 import pathlib
 
 from dynaorb import core
@@ -17,12 +18,14 @@ def frame_range(spec, n: int) -> range:
     sequence in the range (an END past the last frame runs to the last)."""
     if spec is None:
         return range(n)
-    parts = spec.split(":") if isinstance(spec, str) else list(spec)
+    # An open side: empty in a string, None in a pair.
+    parts = [p.strip() or None for p in spec.split(":")] if isinstance(spec, str) else list(spec)
     if len(parts) != 2:
         raise ValueError(f"frames {spec!r}: give START:END (frame numbers from 0, END not included)")
     try:
-        start, end = (int(p) if str(p).strip() not in ("", "None") else d for p, d in zip(parts, (0, n)))
-    except ValueError:
+        start, end = (d if p is None else int(p) if isinstance(p, str) else operator.index(p)
+                      for p, d in zip(parts, (0, n)))
+    except (ValueError, TypeError):
         raise ValueError(f"frames {spec!r}: START and END must be whole numbers") from None
     if start < 0 or end < 0:
         raise ValueError(f"frames {spec!r}: frame numbers count from 0")
