@@ -31,10 +31,29 @@
 // a run, against one 7-double block per pose for every sensor: stereo 9.1 -> 7.8 G instructions,
 // RGB-D 15.6 -> 13.6 G, the same ATE to 1e-6 m; monocular with the split layout (<2, 3, 3>)
 // instead of <2, 3, 6>: its linear solves 8.4 -> 13.0 G, so it keeps the single block.
-// Both use analytic Jacobians (reprojection_cost.h). The reduced camera system has 6 * (free
-// keyframes) unknowns: for a local window (tens of keyframes) DENSE_SCHUR is the fastest; above
-// kDenseSchurMaxKeyframes free keyframes a sparse Schur solver is used when Ceres was built with
-// SuiteSparse or Eigen sparse support.
+// Both use analytic Jacobians (reprojection_cost.h).
+//
+// Linear solver. The reduced camera system has 6 * (free keyframes) unknowns and one block per
+// pair of free keyframes that see a common point. Ceres' SPARSE_SCHUR (SuiteSparse) pays for
+// the sparse bookkeeping of every non-zero block, so it only beats DENSE_SCHUR where most
+// blocks are zero. Measured on corridor problems (keyframes 0.25 m apart, two of them fixed,
+// each point seen by the next `band` keyframes where in view, stereo; the whole bundle_adjust
+// call, this 2-core machine; the test's make_corridor builds the same kind):
+//   keyframes x band   dense    sparse     fill (share of non-zero blocks)
+//   60 x 60            399 ms   653 ms     1.00
+//   100 x 100         1443     2904        1.00
+//   100 x 20           331      414        0.37
+//   250 x 30          1101     1169        0.23
+//   300 x 20          1173      968        0.13
+//   400 x 60          3362     4331        0.28
+// monocular (one block per pose): 150 x 40 611 / 730 ms (0.47), 300 x 40 1321 / 1142 (0.25),
+// 300 x 20 922 / 563 (0.13). Hence BaOptions: dense up to dense_schur_max_keyframes free
+// keyframes whatever the fill, and up to dense_schur_cap_keyframes while the fill is at least
+// dense_schur_min_fill (0.2; monocular dense_schur_min_fill_mono, 0.4); else sparse where Ceres
+// has a sparse library. Local BAs down a corridor (60-80 free keyframes that all see each
+// other) had gone sparse above 60: on the first 500 frames of the long synthetic walk
+// (synchronous) their linear solves took 47 ms per iteration sparse against 27 dense, the run
+// 61 -> 47 s, the same ATE to 1e-15 m.
 #include "dynaorb/optimize/bundle_adjuster.h"
 
 #include <ceres/ceres.h>
@@ -49,8 +68,6 @@
 namespace dynaorb::optimize {
 
 namespace {
-
-constexpr int kDenseSchurMaxKeyframes = 60;
 
 using PoseBlock = std::array<double, 7>;
 
@@ -80,9 +97,38 @@ double huber(double s, double delta2) {
   return s <= delta2 ? s : 2.0 * std::sqrt(delta2 * s) - delta2;
 }
 
-ceres::LinearSolverType choose_linear_solver(int free_keyframes,
+// The share of the reduced camera matrix's keyframe-by-keyframe blocks that are non-zero: ordered
+// pairs of free keyframes that observe a common point, the diagonal included, over n^2.
+// kfs_of_point: per point, the free keyframes (0..n-1) observing it. Counting stops at `enough`.
+double camera_block_fill(const std::vector<std::vector<int>>& kfs_of_point, int n, double enough) {
+  if (n <= 0) return 0;
+  const size_t nn = static_cast<size_t>(n) * static_cast<size_t>(n);
+  const size_t target = static_cast<size_t>(std::ceil(enough * static_cast<double>(nn)));
+  std::vector<unsigned char> seen(nn, 0);
+  size_t nonzero = 0;
+  for (const std::vector<int>& ks : kfs_of_point)
+    for (int a : ks)
+      for (int b : ks) {
+        unsigned char& s = seen[static_cast<size_t>(a) * n + b];
+        if (s) continue;
+        s = 1;
+        if (++nonzero >= target) return enough;
+      }
+  return static_cast<double>(nonzero) / static_cast<double>(nn);
+}
+
+// DENSE_SCHUR up to options.dense_schur_max_keyframes free keyframes; above it, up to
+// dense_schur_cap_keyframes, while the reduced camera matrix is at least dense_schur_min_fill
+// (split pose layout) or dense_schur_min_fill_mono (one block per pose) full; else SPARSE_SCHUR
+// where Ceres has a sparse library. fill(min_fill) computes the fill, counting up to min_fill.
+template <typename Fill>
+ceres::LinearSolverType choose_linear_solver(int free_keyframes, bool split_pose,
+                                             const BaOptions& options, Fill fill,
                                              ceres::SparseLinearAlgebraLibraryType* sparse_lib) {
-  if (free_keyframes <= kDenseSchurMaxKeyframes) return ceres::DENSE_SCHUR;
+  if (free_keyframes <= options.dense_schur_max_keyframes) return ceres::DENSE_SCHUR;
+  const double min_fill = split_pose ? options.dense_schur_min_fill : options.dense_schur_min_fill_mono;
+  if (free_keyframes <= options.dense_schur_cap_keyframes && fill(min_fill) >= min_fill)
+    return ceres::DENSE_SCHUR;
   for (auto lib : {ceres::SUITE_SPARSE, ceres::EIGEN_SPARSE, ceres::CX_SPARSE}) {
     if (ceres::IsSparseLinearAlgebraLibraryTypeAvailable(lib)) {
       *sparse_lib = lib;
@@ -186,6 +232,8 @@ struct Workspace {
     }
   }
 
+  bool dense_schur = false;  // the last solve's linear solver
+
   // One LM pass over the observations with include[i]; returns true if the abort flag stopped it.
   bool solve(const std::vector<bool>& include, bool robust, int iterations,
              const std::atomic<bool>* abort) {
@@ -196,6 +244,7 @@ struct Workspace {
     ceres::Problem problem(po);
     auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
     std::vector<char> pose_used(poses.size(), 0), point_used(points.size(), 0);
+    std::vector<int> free_index(poses.size(), -1);  // free keyframe -> 0..free_keyframes-1
     int free_keyframes = 0;
     for (size_t i = 0; i < include.size(); ++i) {
       if (!include[i]) continue;
@@ -205,7 +254,7 @@ struct Workspace {
       if (!pose_used[o.keyframe]) {
         pose_used[o.keyframe] = 1;
         add_pose(&problem, ordering.get(), pose, in.keyframes[o.keyframe].fixed);
-        if (!in.keyframes[o.keyframe].fixed) ++free_keyframes;
+        if (!in.keyframes[o.keyframe].fixed) free_index[o.keyframe] = free_keyframes++;
       }
       if (!point_used[o.point]) {
         point_used[o.point] = 1;
@@ -224,8 +273,18 @@ struct Workspace {
     AbortCallback callback(abort);
     ceres::Solver::Options so;
     so.sparse_linear_algebra_library_type = ceres::SUITE_SPARSE;
-    so.linear_solver_type =
-        choose_linear_solver(free_keyframes, &so.sparse_linear_algebra_library_type);
+    auto fill = [&](double enough) {
+      std::vector<std::vector<int>> kfs_of_point(points.size());
+      for (size_t i = 0; i < include.size(); ++i) {
+        if (!include[i]) continue;
+        const int f = free_index[in.observations[i].keyframe];
+        if (f >= 0) kfs_of_point[in.observations[i].point].push_back(f);
+      }
+      return camera_block_fill(kfs_of_point, free_keyframes, enough);
+    };
+    so.linear_solver_type = choose_linear_solver(free_keyframes, split_pose, options, fill,
+                                                 &so.sparse_linear_algebra_library_type);
+    dense_schur = so.linear_solver_type == ceres::DENSE_SCHUR;
     so.linear_solver_ordering = ordering;
     so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
     so.max_num_iterations = iterations;
@@ -265,6 +324,7 @@ BaResult bundle_adjust(const BaProblem& problem, const BaOptions& options,
       result.aborted = ws.solve(include, /*robust=*/false, options.iterations_second, abort);
     }
     result.final_cost = ws.classify(&result.outlier);
+    result.dense_schur = ws.dense_schur;
   }
 
   result.T_cw.resize(problem.keyframes.size());

@@ -36,6 +36,15 @@ struct BaOptions {
   double chi2_mono = kChi2Mono;
   double chi2_stereo = kChi2Stereo;
   int num_threads = 1;
+  // Linear solver (speed only: both give the same step). The reduced camera system is solved
+  // dense (DENSE_SCHUR) for up to dense_schur_max_keyframes free keyframes, and up to
+  // dense_schur_cap_keyframes while at least this share of its keyframe-pair blocks is non-zero
+  // (split layout: any stereo / RGB-D observation; mono: one block per pose); else sparse
+  // (SPARSE_SCHUR, SuiteSparse). Measured in bundle_adjuster.cc.
+  int dense_schur_max_keyframes = 60;
+  int dense_schur_cap_keyframes = 500;
+  double dense_schur_min_fill = 0.2;
+  double dense_schur_min_fill_mono = 0.4;
 };
 
 struct BaResult {
@@ -43,6 +52,7 @@ struct BaResult {
   std::vector<Eigen::Vector3d> points;
   std::vector<bool> outlier;            // per observation, after the final solve
   bool aborted = false;                 // stopped early by the abort flag
+  bool dense_schur = false;             // the last solve's reduced camera system was dense
   double initial_cost = 0, final_cost = 0;
 };
 
