@@ -167,6 +167,8 @@ class SlamNode {
   // With system_mutex_ held, before the System's trajectory restarts (a new
   // map): the pass's frames written, and the next pass begun if it had any.
   void end_trajectory_pass_locked(const char* why);
+  // With system_mutex_ held: the next frames go to the next pass's file.
+  void advance_trajectory_pass_locked();
 
   ros::NodeHandle nh_, pnh_;
   NodeConfig cfg_;

@@ -38,10 +38,7 @@ bool SlamNode::on_load_map(dynaorb::MapFile::Request& req, dynaorb::MapFile::Res
   const size_t written = write_trajectory_locked(pass_file(), "before ~load_map");
   try {
     system_->load_map(req.path);
-    if (written > 0) {
-      ++trajectory_pass_;
-      ++counters_.trajectory_passes;
-    }
+    if (written > 0) advance_trajectory_pass_locked();
     // The loaded map's world is the map frame (the saved map's first base pose).
     T_map_world_ = Eigen::Isometry3d::Identity();
     map_restarted_ = false;
@@ -121,10 +118,12 @@ size_t SlamNode::write_trajectory_locked(const std::string& path, const char* wh
 void SlamNode::end_trajectory_pass_locked(const char* why) {
   // As the poses are now: waiting here for local mapping (or a global BA)
   // to finish would hold up the frames of the new map.
-  if (write_trajectory_locked(pass_file(), why) > 0) {
-    ++counters_.trajectory_passes;
-    ++trajectory_pass_;
-  }
+  if (write_trajectory_locked(pass_file(), why) > 0) advance_trajectory_pass_locked();
+}
+
+void SlamNode::advance_trajectory_pass_locked() {
+  ++counters_.trajectory_passes;
+  ++trajectory_pass_;
 }
 
 void SlamNode::finish() {
