@@ -166,10 +166,17 @@ struct System::Impl {
     builder->set_exclude_margin(options.tracker.mask_margin);
     if (options.vocabulary)
       database = std::make_unique<place::KeyFrameDatabase>(map, options.vocabulary, options.database);
-    mapper = std::make_unique<mapping::LocalMapper>(map, sensor, options.mapping, options.vocabulary,
-                                                    database.get());
+    // Under synchronous mapping tracking waits for the optimisations: they may take every core.
+    mapping::LocalMapperOptions mapping = options.mapping;
+    loop::LoopCloserOptions loop = options.loop;
+    if (options.synchronous_mapping) {
+      const int cores = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+      mapping.ba_threads = mapping.ba_threads_synchronous > 0 ? mapping.ba_threads_synchronous : cores;
+      loop.threads = loop.threads_synchronous > 0 ? loop.threads_synchronous : cores;
+    }
+    mapper = std::make_unique<mapping::LocalMapper>(map, sensor, mapping, options.vocabulary, database.get());
     if (database && options.loop_closing) {
-      loop_closer = std::make_unique<loop::LoopCloser>(map, sensor, *database, *mapper, options.loop);
+      loop_closer = std::make_unique<loop::LoopCloser>(map, sensor, *database, *mapper, loop);
       loop::LoopCloser* lc = loop_closer.get();
       mapper->set_keyframe_sink([lc](std::shared_ptr<map::KeyFrame> kf) { lc->insert_keyframe(std::move(kf)); });
     }

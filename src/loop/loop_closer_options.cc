@@ -25,6 +25,7 @@ void LoopCloserOptions::validate() const {
   c.at_least("pose_graph_iterations", pose_graph_iterations, 1);
   c.at_least("global_ba_iterations", global_ba_iterations, 1);
   c.at_least("threads", threads, 1);
+  c.at_least("threads_synchronous", threads_synchronous, 0);
   check_background_nice(thread_nice, "loop closing option 'thread_nice'");
 }
 

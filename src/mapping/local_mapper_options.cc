@@ -17,6 +17,7 @@ void LocalMapperOptions::validate() const {
   c.between("redundant_ratio", redundant_ratio, 0, 1, true);
   c.at_least("redundant_observers", redundant_observers, 1);
   c.at_least("ba_threads", ba_threads, 1);
+  c.at_least("ba_threads_synchronous", ba_threads_synchronous, 0);
   check_background_nice(thread_nice, "local mapping option 'thread_nice'");
 }
 

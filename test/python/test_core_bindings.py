@@ -160,6 +160,31 @@ def test_mapping_and_loop_options_reach_the_system(data):
     assert s["local_ba_runs"] > 0 and s["local_ba_aborted"] == 0
 
 
+def test_synchronous_mapping_optimises_on_every_core_with_the_same_result(data):
+    """Under synchronous mapping tracking waits for local BA, so its Ceres
+    threads are ba_threads_synchronous (0, the default: every core); one
+    thread or two give the same map to rounding (Ceres' threaded sums)."""
+    import numpy as np
+
+    assert core().LocalMapperOptions().ba_threads_synchronous == 0
+    assert core().LoopCloserOptions().threads_synchronous == 0
+    provider = core().open_dataset("kitti", str(data / "kitti/sequences/06"), "stereo")
+    poses = {}
+    for threads in (1, 2):
+        o = core().LocalMapperOptions()
+        o.ba_threads_synchronous = threads
+        system = core().System(provider.default_settings(), "stereo", synchronous_mapping=True, mapping=o)
+        for i in range(15):
+            assert system.track_frame(provider.load(i), None, None).state == "OK"
+        assert system.map_summary()["local_ba_runs"] > 0
+        poses[threads] = np.asarray(system.trajectory()[1])
+    assert poses[1].shape == poses[2].shape and np.allclose(poses[1], poses[2], atol=1e-9)
+    o = core().LocalMapperOptions()
+    o.ba_threads_synchronous = -1
+    with pytest.raises(ValueError, match="local mapping option 'ba_threads_synchronous' is -1"):
+        core().System(provider.default_settings(), "stereo", mapping=o)
+
+
 def test_mapping_and_loop_options_are_checked(data, tmp_path):
     """A value out of range is refused where the System is made, naming the
     option; an unknown or malformed one by the runner before anything loads."""

@@ -75,6 +75,7 @@ struct LoopCloserOptions {
   bool global_ba = true;
   int global_ba_iterations = 10;    // ORB-SLAM2: 10
   int threads = 1;                  // Ceres threads (pose graph, global BA)
+  int threads_synchronous = 0;      // the same under synchronous mapping, which waits for them (0: every core)
   // The loop closing and global BA threads' nice value above the process's
   // (core/thread_priority.h). 0: the same priority as tracking.
   int thread_nice = 10;
@@ -102,6 +103,7 @@ void option_fields(const LoopCloserOptions*, F&& f) {
   f("global_ba", &LoopCloserOptions::global_ba);
   f("global_ba_iterations", &LoopCloserOptions::global_ba_iterations);
   f("threads", &LoopCloserOptions::threads);
+  f("threads_synchronous", &LoopCloserOptions::threads_synchronous);
   f("thread_nice", &LoopCloserOptions::thread_nice);
 }
 
