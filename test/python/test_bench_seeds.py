@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 import pytest
 
@@ -82,6 +83,9 @@ def test_a_small_sweep_runs_every_condition(tmp_path, data):
         assert r["tracked_frames"] == r["frames"] == 20, condition
         spec = json.loads((tmp_path / "out" / "runs" / "rgbd" / "s7" / condition / "spec.json").read_text())
         assert spec["synchronous_mapping"] is True and spec["tracker"] == {"reloc.min_inliers": 45}
+        # Two runs at a time: each one's synchronous BAs take its share of the cores.
+        share = max(1, (os.cpu_count() or 1) // 2)
+        assert spec["mapping"] == {"ba_threads_synchronous": share} and spec["loop"] == {"threads_synchronous": share}
         assert ("labels" in spec) == (condition == "full") and ("masks" in spec) == (condition == "masks")
         assert ("_m0_" in spec["path"]) == (condition == "static")
     # Measured on this small room (synchronous, so every run repeats it): static 5.3 mm, full 8.9 mm

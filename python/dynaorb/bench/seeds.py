@@ -6,7 +6,7 @@ miss whole failures: RGB-D seeds 6-10 once gave `full` 2-12x the static
 error while seeds 0-2 gave 1.05-1.29. This suite renders, per sensor and
 seed, the room without and with movers (what `dynaorb synth --movers 0|3
 --frames 60 --seed S` writes) and runs each condition once, with
-synchronous mapping (runs repeat exactly):
+synchronous mapping (runs repeat, to rounding):
 
   static  no movers, no filter: the reference;
   full    movers, the `full` preset with the label images;
@@ -33,6 +33,7 @@ import concurrent.futures
 import dataclasses
 import datetime
 import json
+import os
 import pathlib
 import statistics
 
@@ -149,6 +150,19 @@ def _sequence(sensor: str, movers: int, seed: int, root: pathlib.Path, opts: See
                           height=opts.height, fx=opts.fx)
 
 
+def _thread_shares(opts: SeedsOptions) -> tuple[dict | None, dict | None]:
+    """The mapping and loop options of a run: with several runs at a time
+    (--jobs), each run's synchronous BAs get its share of the cores
+    (ba_threads_synchronous / threads_synchronous, otherwise every core each)
+    unless the options set them."""
+    mapping, loop = opts.mapping, opts.loop
+    if opts.jobs > 1:
+        share = max(1, (os.cpu_count() or 1) // opts.jobs)
+        mapping = {"ba_threads_synchronous": share, **(mapping or {})}
+        loop = {"threads_synchronous": share, **(loop or {})}
+    return mapping, loop
+
+
 def _run(seq: Sequence, sensor: str, seed: int, condition: str, out: pathlib.Path, opts: SeedsOptions) -> dict:
     """One run of one condition (its record, also written to its folder)."""
     from dynaorb.bench.suite_runner import keep_record, reused_record, run_spec
@@ -163,7 +177,8 @@ def _run(seq: Sequence, sensor: str, seed: int, condition: str, out: pathlib.Pat
         spec["labels"] = seq.labels
     if masks:
         spec["masks"] = str(pathlib.Path(seq.path) / "dynamic_masks")
-    spec.update({k: v for k, v in (("tracker", opts.tracker), ("mapping", opts.mapping), ("loop", opts.loop)) if v})
+    mapping, loop = _thread_shares(opts)
+    spec.update({k: v for k, v in (("tracker", opts.tracker), ("mapping", mapping), ("loop", loop)) if v})
     record = {"sensor": sensor, "seed": seed, "condition": condition, "out": str(out)}
     reused = reused_record(out, "spec.json", spec, opts.resume)
     if reused is not None:

@@ -12,7 +12,7 @@ settings and vocabulary) runs on every seed's room:
 
 Ratios are ours / ORB-SLAM3 on the same seed (issue 8: `full` no worse
 than ORB-SLAM3's plain mode). ORB-SLAM3 maps in its own threads, so its
-runs do not repeat exactly as ours (synchronous) do.
+runs do not repeat as ours (synchronous, equal to rounding) do.
 """
 from __future__ import annotations
 
