@@ -29,6 +29,16 @@ using namespace dynaorb::test;  // NOLINT: kDeg, perturb, pose errors
 constexpr int kKeyframes = 10;
 constexpr int kFixed = 2;
 
+// A 640x480 pinhole camera with focal length f and a stereo baseline bf = 40 px m.
+dynaorb::optimize::Intrinsics camera(double f) {
+  dynaorb::optimize::Intrinsics K;
+  K.fx = K.fy = f;
+  K.cx = 320;
+  K.cy = 240;
+  K.bf = 40;
+  return K;
+}
+
 struct Scene {
   BaProblem truth;    // true poses and points, noisy observations
   BaProblem problem;  // the same with perturbed free poses and points
@@ -42,10 +52,7 @@ Scene make_scene(unsigned seed, int n_points, double outlier_ratio, double stere
   std::normal_distribution<double> g(0, 1);
   Scene s;
   BaProblem& P = s.truth;
-  P.K.fx = P.K.fy = 500;
-  P.K.cx = 320;
-  P.K.cy = 240;
-  P.K.bf = 40;
+  P.K = camera(500);
   // Keyframes on a 60 deg arc of radius 4 m around the centre of the point cloud, looking at it
   // (with a little jitter): the parallax of a local map, so depths are well triangulated.
   const Eigen::Vector3d target(0, 0, 4);
@@ -265,10 +272,7 @@ TEST(BundleAdjuster, PointBehindAFreeKeyframeDoesNotMoveIt) {
   std::uniform_real_distribution<double> U(0, 1);
   std::normal_distribution<double> g(0, 1);
   BaProblem truth;
-  truth.K.fx = truth.K.fy = 500;
-  truth.K.cx = 320;
-  truth.K.cy = 240;
-  truth.K.bf = 40;
+  truth.K = camera(500);
   constexpr int kDriven = 16;
   for (int k = 0; k < kDriven; ++k) {
     dynaorb::optimize::BaKeyframe kf;
@@ -330,10 +334,7 @@ BaProblem make_corridor(int n, int band, int points_per_kf, unsigned seed) {
   std::uniform_real_distribution<double> U(0, 1);
   std::normal_distribution<double> g(0, 1);
   BaProblem P;
-  P.K.fx = P.K.fy = 400;
-  P.K.cx = 320;
-  P.K.cy = 240;
-  P.K.bf = 40;
+  P.K = camera(400);
   for (int k = 0; k < n; ++k) {
     dynaorb::optimize::BaKeyframe kf;
     kf.T_cw.translation() = Eigen::Vector3d(0, 0, -0.25 * k);
