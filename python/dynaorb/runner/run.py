@@ -141,7 +141,8 @@ FRAME_STAGES = ("preprocess", "dynamic", "extract", "stereo_matching", "tracking
 
 # Synchronous mapping maps each keyframe in full before the next frame: on a
 # long sequence local mapping can take most of the run (the 1500-frame
-# synthetic stereo walk: 4.5 min, 5.6 fps; `dynaorb bench --suite long`).
+# synthetic stereo walk of `dynaorb bench --suite long`: 2.6-2.8 min, 9-10
+# fps on 2 cores; 63 fps with --async-mapping).
 SYNC_HINT_MIN_WALL_S = 30.0   # runs shorter than this are not worth a hint
 SYNC_HINT_SHARE = 0.5         # local mapping's share of the run's wall time above which it is given
 
