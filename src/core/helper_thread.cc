@@ -1,5 +1,10 @@
 #include "dynaorb/core/helper_thread.h"
 
+#include <atomic>
+#include <chrono>
+#include <algorithm>
+#include <exception>
+#include <memory>
 #include <utility>
 
 #if defined(__linux__)
@@ -54,6 +59,75 @@ std::future<void> HelperThread::enqueue(std::function<void()> job) {
   }
   wake_.notify_one();
   return done;
+}
+
+// What share_async()'s caller and the worker hold together; the worker's
+// job may outlive the call (woken after everything ran), so it holds this by
+// shared_ptr and calls `task` only for an index it claimed, which the caller
+// waits for.
+struct HelperThread::Shared::State {
+  State(int n_, std::function<void(int)> t) : n(n_), task(std::move(t)) {}
+  const int n;
+  const std::function<void(int)> task;  // may refer to the caller's locals: called only for a claimed index
+  std::atomic<int> next{0}, done{0};
+  std::atomic<bool> skip{false};  // claimed from now on: counted, not run
+  std::mutex mutex;
+  std::condition_variable all_done;
+  std::exception_ptr error;  // under mutex
+
+  void work() {
+    for (int i = next.fetch_add(1); i < n; i = next.fetch_add(1)) {
+      if (!skip.load()) {
+        try {
+          task(i);
+        } catch (...) {
+          std::lock_guard<std::mutex> lock(mutex);
+          if (!error) error = std::current_exception();
+        }
+      }
+      if (done.fetch_add(1) + 1 == n) {
+        std::lock_guard<std::mutex> lock(mutex);  // the caller is waiting or will see done == n
+        all_done.notify_all();
+      }
+    }
+  }
+
+  // All claimed and all done. What is left after the caller's own claims is
+  // the worker's last task (a fraction of the whole): sleeping on it would
+  // hand this core to whatever runs beside (local mapping), and the wake-up
+  // could then wait for that thread's time slice, so spin a while first.
+  void finish() {
+    work();
+    const auto spin_until = std::chrono::steady_clock::now() + std::chrono::microseconds(kShareSpinUs);
+    while (done.load() < n && std::chrono::steady_clock::now() < spin_until) {
+    }
+    std::unique_lock<std::mutex> lock(mutex);
+    all_done.wait(lock, [&] { return done.load() == n; });
+  }
+};
+
+HelperThread::Shared HelperThread::share_async(int n, std::function<void(int)> task) {
+  auto state = std::make_shared<Shared::State>(std::max(n, 0), std::move(task));
+  if (n > 1) post([state] { state->work(); });
+  return Shared(std::move(state));
+}
+
+void HelperThread::Shared::join() {
+  const std::shared_ptr<State> s = std::move(state_);
+  if (!s) return;
+  s->finish();
+  std::exception_ptr error;
+  {
+    std::lock_guard<std::mutex> lock(s->mutex);
+    error = s->error;
+  }
+  if (error) std::rethrow_exception(error);
+}
+
+HelperThread::Shared::~Shared() {
+  if (!state_) return;
+  state_->skip = true;
+  state_->finish();
 }
 
 void HelperThread::run() {

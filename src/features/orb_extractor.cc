@@ -430,19 +430,6 @@ void OrbExtractor::set_exclude_margin(int level_px) {
   exclude_margin_ = level_px;
 }
 
-std::vector<std::vector<int>> OrbExtractor::level_groups(int groups) const {
-  groups = std::max(groups, 1);
-  std::vector<std::vector<int>> out(static_cast<size_t>(groups));
-  std::vector<double> area(static_cast<size_t>(groups), 0.0);
-  // Levels from the largest down, each to the group with the least area so far.
-  for (int level = 0; level < n_levels(); ++level) {
-    const size_t g = static_cast<size_t>(std::min_element(area.begin(), area.end()) - area.begin());
-    out[g].push_back(level);
-    area[g] += static_cast<double>(inv_sigma2_[level]);
-  }
-  return out;
-}
-
 void OrbExtractor::check_detection(const OrbDetection& d) const {
   const size_t L = static_cast<size_t>(n_levels());
   if (d.pyramid.size() != L || d.blurred.size() != L || d.corners.size() != L || d.kept.size() != L ||

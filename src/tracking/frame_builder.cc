@@ -5,6 +5,7 @@
 #include <chrono>
 #include <atomic>
 #include <future>
+#include <thread>
 #include <utility>
 #include <opencv2/calib3d.hpp>
 
@@ -50,21 +51,15 @@ std::shared_ptr<map::Features> FrameBuilder::extract(features::OrbExtractor& ext
   auto f = std::make_shared<map::Features>();
   f->calib = calib_;
   const auto t0 = Clock::now();
-  // The pyramid levels split between this thread and the helper (idle for
-  // mono and RGB-D, which have no right image): the same features as one
-  // OrbExtractor::extract call.
+  // The pyramid levels shared between this thread and the helper (idle for
+  // mono and RGB-D, which have no right image), the largest first: the same
+  // features as one OrbExtractor::extract call.
   features::OrbDetection d = extractor.start(grey);
-  const std::vector<std::vector<int>> groups = extractor.level_groups(2);
   const cv::Mat* region = count ? &count->region : nullptr;
-  const auto levels = [&](const std::vector<int>& which) {
-    for (int level : which) {
-      extractor.detect_level(d, level);
-      extractor.describe_level(d, level, exclude, region);
-    }
-  };
-  HelperThread::Job other = helper_.submit([&] { levels(groups[1]); });
-  levels(groups[0]);
-  other.get();
+  helper_.share(extractor.n_levels(), [&](int level) {
+    extractor.detect_level(d, level);
+    extractor.describe_level(d, level, exclude, region);
+  });
   extractor.finish(std::move(d), f->keys, f->descriptors, count);
   t["extract"] = ms_since(t0);
   f->u_right.assign(f->keys.size(), -1.0f);
@@ -132,12 +127,29 @@ std::shared_ptr<const map::Features> FrameBuilder::stereo(const cv::Mat& left, c
   f->calib = calib_;
   std::vector<cv::KeyPoint> keys_r;
   cv::Mat desc_r;
-  // The right image is extracted on a second thread while this one does the left.
+  // The two images' pyramids, then their levels (left and right alternately,
+  // the largest first), shared between this thread and the helper: the same
+  // features as one OrbExtractor::extract call per image.
   right_.set_n_features(right_budget(exclude));
   const auto t0 = Clock::now();
-  HelperThread::Job right_job = helper_.submit([&] { right_.extract(right, cv::Mat(), keys_r, desc_r); });
-  left_.extract(left, exclude, f->keys, f->descriptors, count);
-  right_job.get();
+  features::OrbDetection dl, dr;
+  helper_.share(2, [&](int i) {
+    if (i == 0) dl = left_.start(left);
+    else dr = right_.start(right);
+  });
+  const cv::Mat* region = count ? &count->region : nullptr;
+  helper_.share(2 * left_.n_levels(), [&](int k) {
+    const int level = k / 2;
+    if (k % 2 == 0) {
+      left_.detect_level(dl, level);
+      left_.describe_level(dl, level, exclude, region);
+    } else {
+      right_.detect_level(dr, level);
+      right_.describe_level(dr, level, cv::Mat());
+    }
+  });
+  left_.finish(std::move(dl), f->keys, f->descriptors, count);
+  right_.finish(std::move(dr), keys_r, desc_r);
   t["extract"] = ms_since(t0);
   match_stereo(*f, keys_r, desc_r, t);
   return f;
@@ -150,46 +162,57 @@ std::shared_ptr<const map::Features> FrameBuilder::stereo(const cv::Mat& left, c
   f->calib = calib_;
   std::vector<cv::KeyPoint> keys_r;
   cv::Mat desc_r;
-  // Both images' detection on the helper thread, the right image's first,
-  // while this one computes the mask; then the helper describes the right
-  // image (its budget set by the mask) while this thread describes the left
-  // once its detection is done. On the persistent helper rather than a thread
-  // of their own (std::async), which was slower than no overlap
-  // (DynamicFilterOptions::overlap_extraction has the measurements).
-  // A filter that ends before the helper has begun the left image (one with
-  // nothing to decide on takes 0.3 ms) takes the left detection back, so the
-  // two images are detected side by side as without the overlap (EuRoC V1
-  // stereo `full`, left to the helper: 21.2 ms against 13.6 without the
-  // overlap). The right description goes to the helper first.
-  features::OrbDetection detected_left, detected_right;
-  double right_ms = 0, left_ms = 0;
-  std::atomic<bool> left_claimed{false};
-  const auto detect_left = [&] {
-    const auto t0 = Clock::now();
-    detected_left = left_.detect(left);
-    left_ms = ms_since(t0);
-  };
-  HelperThread::Job right_detect = helper_.submit([&] {
-    const auto t0 = Clock::now();
-    detected_right = right_.detect(right);
-    right_ms = ms_since(t0);
-  });
-  HelperThread::Job left_detect = helper_.submit([&] {
-    if (!left_claimed.exchange(true)) detect_left();
-  });
-  const cv::Mat mask = exclude();
-  const auto t1 = Clock::now();
-  const bool left_here = !left_claimed.exchange(true);
-  right_.set_n_features(right_budget(mask));
-  HelperThread::Job right_job =  // after the right detection, in the helper's order
-      helper_.submit([&] { right_.describe(std::move(detected_right), cv::Mat(), keys_r, desc_r); });
-  if (left_here) detect_left();
-  else left_detect.get();
-  left_.describe(std::move(detected_left), mask, f->keys, f->descriptors, count);
-  right_detect.get();  // what the detections threw, as the description's
-  right_job.get();
-  t["extract"] = ms_since(t1);
-  t["extract_overlapped"] = right_ms + (left_here ? 0.0 : left_ms);
+  // Both images' detection (their pyramids, then their levels, the right
+  // image's first, the largest first) starts on the helper thread while this
+  // one computes the mask, and this one joins it once the mask is there;
+  // then the levels' description (the right image's budget set by the mask)
+  // is shared the same way. The caller never waits for the helper to start
+  // (HelperThread::share_async). Before, the helper had the right image's
+  // detection and description, this thread the left ones (unless the
+  // helper began the left detection first). DynamicFilterOptions::
+  // overlap_extraction has the measurements of the overlap itself.
+  features::OrbDetection detected[2];  // right, left
+  features::OrbExtractor* extractor[2] = {&right_, &left_};
+  const cv::Mat* image[2] = {&right, &left};
+  std::atomic<bool> started[2] = {false, false};
+  const int levels = left_.n_levels();
+  const std::thread::id caller = std::this_thread::get_id();
+  std::atomic<double> helper_ms{0.0};
+  {
+    HelperThread::Shared detection = helper_.share_async(2 + 2 * levels, [&](int k) {
+      const auto tk = Clock::now();
+      if (k < 2) {
+        try {
+          detected[k] = extractor[k]->start(*image[k]);
+        } catch (...) {
+          started[k] = true;  // nothing to detect on: its levels end at once, this is rethrown
+          throw;
+        }
+        started[k] = true;
+      } else {
+        const int which = k % 2, level = (k - 2) / 2;
+        while (!started[which]) {
+        }  // its pyramid, claimed before: being built or done
+        if (detected[which].pyramid.empty()) return;
+        extractor[which]->detect_level(detected[which], level);
+      }
+      if (std::this_thread::get_id() != caller) helper_ms = helper_ms + ms_since(tk);  // one helper: no race
+    });
+    const cv::Mat mask = exclude();
+    const auto t1 = Clock::now();
+    detection.join();
+    right_.set_n_features(right_budget(mask));
+    const cv::Mat* region = count ? &count->region : nullptr;
+    helper_.share(2 * levels, [&](int k) {
+      const int level = k / 2;
+      if (k % 2 == 0) left_.describe_level(detected[1], level, mask, region);
+      else right_.describe_level(detected[0], level, cv::Mat());
+    });
+    left_.finish(std::move(detected[1]), f->keys, f->descriptors, count);
+    right_.finish(std::move(detected[0]), keys_r, desc_r);
+    t["extract"] = ms_since(t1);
+  }
+  t["extract_overlapped"] = helper_ms;  // the detection's time on the helper
   match_stereo(*f, keys_r, desc_r, t);
   return f;
 }

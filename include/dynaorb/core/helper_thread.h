@@ -33,6 +33,7 @@
 #include <deque>
 #include <functional>
 #include <future>
+#include <memory>
 #include <mutex>
 #include <thread>
 
@@ -65,6 +66,43 @@ class HelperThread {
 
   // Runs `job` on the worker; jobs run one at a time, in submission order.
   Job submit(std::function<void()> job);
+  // Tasks shared between a caller and the worker (share_async): each index
+  // runs once, on whichever thread claims it first.
+  class Shared {
+   public:
+    struct State;
+    explicit Shared(std::shared_ptr<State> state) : state_(std::move(state)) {}
+    Shared(Shared&&) = default;
+    Shared& operator=(Shared&&) = delete;
+    // The caller claims what is left, then waits for the tasks the worker
+    // claimed (spinning a while first: kShareSpinUs); rethrows the first
+    // exception a task threw, once all have run. Once only.
+    void join();
+    // Without join (e.g. the caller left by an exception): the tasks not yet
+    // claimed are skipped, the claimed ones waited for.
+    ~Shared();
+
+   private:
+    std::shared_ptr<State> state_;
+  };
+
+  // Runs task(0), ..., task(n - 1), each once, on the calling thread and the
+  // worker together, and returns when all have run: each thread claims the
+  // next index until none is left, so the tasks go in index order (put the
+  // longest first) and the worker takes what the caller has not begun. The
+  // caller never waits for the worker to start: on a core held by other
+  // work the worker may wake milliseconds late (EEVDF lets a nice-10 local
+  // mapping finish its slice), and then the caller runs everything itself.
+  // It waits only for tasks the worker has claimed. The first exception a
+  // task throws is rethrown here, once all tasks are done (the others still run).
+  void share(int n, std::function<void(int)> task) { share_async(n, std::move(task)).join(); }
+  // The same, started on the worker now; the caller joins when it is free
+  // (its own work meanwhile). Tasks may wait for earlier indices (e.g. a
+  // level for its image's pyramid): a claimed index is running or done.
+  Shared share_async(int n, std::function<void(int)> task);
+  // How long share()'s caller spins on the worker's last task before it sleeps.
+  static constexpr int kShareSpinUs = 3000;
+
   // The same without a Job: the caller learns of the job's end by its own
   // means (e.g. a std::packaged_task's future), and the job must own what it
   // reads (captures by value). What it throws is dropped.

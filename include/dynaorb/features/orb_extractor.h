@@ -75,9 +75,6 @@ class OrbExtractor {
                       const cv::Mat* count_region = nullptr) const;
   void finish(OrbDetection&& detection, std::vector<cv::KeyPoint>& keypoints, cv::Mat& descriptors,
               ExcludedCount* count = nullptr);
-  // The levels in two groups of about equal pixel area (what FAST and the
-  // blur cost), for two threads.
-  std::vector<std::vector<int>> level_groups(int groups = 2) const;
 
   // The keypoint budget of later extractions (nFeatures), spread over the
   // levels as at construction.

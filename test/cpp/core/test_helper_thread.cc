@@ -75,6 +75,55 @@ TEST(HelperThread, DestructionRunsTheJobsAlreadyPostedThenJoins) {
   EXPECT_EQ(ran, 3);
 }
 
+// share(): every index runs once, on the caller and the worker.
+TEST(HelperThread, ShareRunsEveryTaskOnceOnBothThreads) {
+  HelperThread helper;
+  for (int n : {0, 1, 2, 8, 200}) {
+    std::vector<std::atomic<int>> runs(static_cast<size_t>(n));
+    std::atomic<int> on_worker{0};
+    const auto caller = std::this_thread::get_id();
+    helper.share(n, [&](int i) {
+      ++runs[static_cast<size_t>(i)];
+      if (std::this_thread::get_id() != caller) ++on_worker;
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    });
+    for (int i = 0; i < n; ++i) EXPECT_EQ(runs[static_cast<size_t>(i)].load(), 1) << "n " << n << " task " << i;
+    if (n == 200) EXPECT_GT(on_worker.load(), 0);  // 40 ms of tasks: the worker took some
+  }
+}
+
+// A worker still busy with an earlier job: the caller runs every task
+// itself and returns without waiting for the worker.
+TEST(HelperThread, ShareDoesNotWaitForABusyWorker) {
+  HelperThread helper;
+  std::promise<void> release;
+  std::shared_future<void> released = release.get_future().share();
+  helper.post([released] { released.wait(); });
+  const auto caller = std::this_thread::get_id();
+  std::atomic<int> elsewhere{0};
+  helper.share(8, [&](int) {
+    if (std::this_thread::get_id() != caller) ++elsewhere;
+  });
+  EXPECT_EQ(elsewhere.load(), 0);
+  release.set_value();
+  // The stale share job runs later and finds nothing to do.
+  helper.submit([] {}).get();
+}
+
+TEST(HelperThread, ShareRethrowsATasksExceptionAfterTheRest) {
+  HelperThread helper;
+  std::atomic<int> ran{0};
+  EXPECT_THROW(helper.share(6,
+                            [&](int i) {
+                              ++ran;
+                              if (i == 2) throw std::runtime_error("task 2 failed");
+                            }),
+               std::runtime_error);
+  EXPECT_EQ(ran.load(), 6);
+  helper.share(2, [&](int) { ++ran; });  // still usable
+  EXPECT_EQ(ran.load(), 8);
+}
+
 #if defined(__linux__)
 // The worker is woken with the caller's CPU out of its affinity; the job
 // itself runs with the caller's whole affinity again.

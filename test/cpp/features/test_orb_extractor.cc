@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "../test_util.h"
+#include "dynaorb/core/helper_thread.h"
 #include "dynaorb/features/orb_extractor.h"
 
 namespace dynaorb {
@@ -389,42 +390,43 @@ TEST(OrbExtractor, DetectThenDescribeIsExtract) {
 
 // The levels spread over two threads (FrameBuilder's mono / RGB-D
 // extraction): start(), then detect_level() and describe_level() per level
-// on either thread, then finish() give extract()'s keypoints, descriptors and
-// count, bit for bit.
+// on either thread, in any order, then finish() give extract()'s keypoints,
+// descriptors and count, bit for bit; so do the levels shared through
+// HelperThread::share, as FrameBuilder runs them.
 TEST(OrbExtractor, LevelsOnTwoThreadsAreExtract) {
   DYNAORB_REQUIRE_SHARED();
   const Reference ref;
   ASSERT_FALSE(ref.img.empty());
   OrbExtractor two(settings(2000));
-  const std::vector<std::vector<int>> groups = two.level_groups(2);
-  ASSERT_EQ(groups.size(), 2u);
-  std::vector<int> all;
-  double area[2] = {0, 0};
-  for (int g = 0; g < 2; ++g)
-    for (int level : groups[g]) {
-      all.push_back(level);
-      area[g] += two.inv_level_sigma2()[level];
-    }
-  std::sort(all.begin(), all.end());
-  ASSERT_EQ(all, std::vector<int>({0, 1, 2, 3, 4, 5, 6, 7}));
-  EXPECT_LT(std::abs(area[0] - area[1]), 0.15 * (area[0] + area[1]));  // even halves
-
-  features::ExcludedCount c2;
-  c2.region = ref.exclude;
-  features::OrbDetection d = two.start(ref.img);
-  const auto run = [&](const std::vector<int>& levels) {
-    for (int level : levels) {
-      two.detect_level(d, level);
-      two.describe_level(d, level, ref.exclude, &c2.region);
-    }
+  const auto level = [&](features::OrbDetection& d, int l, const cv::Mat& region) {
+    two.detect_level(d, l);
+    two.describe_level(d, l, ref.exclude, &region);
   };
-  std::thread other([&] { run(groups[1]); });
-  run(groups[0]);
-  other.join();
-  std::vector<cv::KeyPoint> k2;
-  cv::Mat d2;
-  two.finish(std::move(d), k2, d2, &c2);
-  ref.expect_same(two, k2, d2, c2);
+  {
+    features::ExcludedCount c2;
+    c2.region = ref.exclude;
+    features::OrbDetection d = two.start(ref.img);
+    std::thread other([&] {
+      for (int l : {7, 5, 3, 1}) level(d, l, c2.region);
+    });
+    for (int l : {0, 2, 4, 6}) level(d, l, c2.region);
+    other.join();
+    std::vector<cv::KeyPoint> k2;
+    cv::Mat d2;
+    two.finish(std::move(d), k2, d2, &c2);
+    ref.expect_same(two, k2, d2, c2);
+  }
+  {
+    HelperThread helper;
+    features::ExcludedCount c2;
+    c2.region = ref.exclude;
+    features::OrbDetection d = two.start(ref.img);
+    helper.share(two.n_levels(), [&](int l) { level(d, l, c2.region); });
+    std::vector<cv::KeyPoint> k2;
+    cv::Mat d2;
+    two.finish(std::move(d), k2, d2, &c2);
+    ref.expect_same(two, k2, d2, c2);
+  }
   // A level out of range is refused.
   features::OrbDetection e = two.start(ref.img);
   EXPECT_THROW(two.detect_level(e, 8), std::invalid_argument);
