@@ -70,20 +70,17 @@ struct HelperThread::Shared::State {
   const int n;
   const std::function<void(int)> task;  // may refer to the caller's locals: called only for a claimed index
   std::atomic<int> next{0}, done{0};
-  std::atomic<bool> skip{false};  // claimed from now on: counted, not run
   std::mutex mutex;
   std::condition_variable all_done;
   std::exception_ptr error;  // under mutex
 
   void work() {
     for (int i = next.fetch_add(1); i < n; i = next.fetch_add(1)) {
-      if (!skip.load()) {
-        try {
-          task(i);
-        } catch (...) {
-          std::lock_guard<std::mutex> lock(mutex);
-          if (!error) error = std::current_exception();
-        }
+      try {
+        task(i);
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (!error) error = std::current_exception();
       }
       if (done.fetch_add(1) + 1 == n) {
         std::lock_guard<std::mutex> lock(mutex);  // the caller is waiting or will see done == n
@@ -125,9 +122,7 @@ void HelperThread::Shared::join() {
 }
 
 HelperThread::Shared::~Shared() {
-  if (!state_) return;
-  state_->skip = true;
-  state_->finish();
+  if (state_) state_->finish();
 }
 
 void HelperThread::run() {

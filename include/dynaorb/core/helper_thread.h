@@ -78,8 +78,10 @@ class HelperThread {
     // claimed (spinning a while first: kShareSpinUs); rethrows the first
     // exception a task threw, once all have run. Once only.
     void join();
-    // Without join (e.g. the caller left by an exception): the tasks not yet
-    // claimed are skipped, the claimed ones waited for.
+    // Without join (e.g. the caller left by an exception): the caller runs
+    // the tasks not yet claimed as join() does (none is skipped, so a task
+    // that waits for an earlier one never waits for one left out) and drops
+    // what they threw.
     ~Shared();
 
    private:

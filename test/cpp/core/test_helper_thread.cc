@@ -124,6 +124,37 @@ TEST(HelperThread, ShareRethrowsATasksExceptionAfterTheRest) {
   EXPECT_EQ(ran.load(), 8);
 }
 
+// share_async(): the worker starts at once; the caller joins later. A
+// Shared dropped without join (the caller left by an exception) still runs
+// every task, so one that waits for an earlier index is never stranded.
+TEST(HelperThread, ShareAsyncRunsBesideTheCallerAndWithoutJoin) {
+  HelperThread helper;
+  std::vector<std::atomic<int>> runs(20);
+  {
+    HelperThread::Shared shared = helper.share_async(20, [&](int i) { ++runs[static_cast<size_t>(i)]; });
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));  // the caller's own work
+    shared.join();
+  }
+  for (auto& r : runs) EXPECT_EQ(r.load(), 1);
+  std::atomic<bool> first_done{false};
+  std::atomic<int> ran{0};
+  try {
+    HelperThread::Shared shared = helper.share_async(6, [&](int i) {
+      if (i == 0) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+        first_done = true;
+      } else {
+        while (!first_done) {
+        }  // waits for index 0, as a pyramid level waits for its pyramid
+      }
+      ++ran;
+    });
+    throw std::runtime_error("the caller's own work failed");
+  } catch (const std::runtime_error&) {
+  }
+  EXPECT_EQ(ran.load(), 6);
+}
+
 #if defined(__linux__)
 // The worker is woken with the caller's CPU out of its affinity; the job
 // itself runs with the caller's whole affinity again.
