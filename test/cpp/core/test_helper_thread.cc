@@ -80,16 +80,25 @@ TEST(HelperThread, ShareRunsEveryTaskOnceOnBothThreads) {
   HelperThread helper;
   for (int n : {0, 1, 2, 8, 200}) {
     std::vector<std::atomic<int>> runs(static_cast<size_t>(n));
-    std::atomic<int> on_worker{0};
-    const auto caller = std::this_thread::get_id();
     helper.share(n, [&](int i) {
       ++runs[static_cast<size_t>(i)];
-      if (std::this_thread::get_id() != caller) ++on_worker;
       std::this_thread::sleep_for(std::chrono::microseconds(200));
     });
     for (int i = 0; i < n; ++i) EXPECT_EQ(runs[static_cast<size_t>(i)].load(), 1) << "n " << n << " task " << i;
-    if (n == 200) EXPECT_GT(on_worker.load(), 0);  // 40 ms of tasks: the worker took some
   }
+  // The caller's first task holds until the worker has run one of the others.
+  const auto caller = std::this_thread::get_id();
+  std::atomic<int> on_worker{0};
+  helper.share(4, [&](int) {
+    if (std::this_thread::get_id() != caller) {
+      ++on_worker;
+      return;
+    }
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+    while (on_worker == 0 && std::chrono::steady_clock::now() < until)
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  });
+  EXPECT_GT(on_worker.load(), 0);
 }
 
 // A worker still busy with an earlier job: the caller runs every task
