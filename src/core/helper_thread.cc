@@ -1,8 +1,8 @@
 #include "dynaorb/core/helper_thread.h"
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <algorithm>
 #include <exception>
 #include <memory>
 #include <utility>

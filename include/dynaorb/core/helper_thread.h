@@ -1,7 +1,8 @@
 #pragma once
 // A persistent worker for one calling thread's fork-join work: the tracking
-// thread extracts the right image's ORB features on it while it does the
-// left image's.
+// thread shares the ORB extraction's pyramid levels with it (share;
+// tracking/frame_builder.h). The measurements below are of its first use,
+// the right image's extraction submitted whole.
 //
 // Why not std::async. It starts a thread per job, and on a machine whose
 // other cores are busy, even with lower-priority work (the segmentation
@@ -12,9 +13,10 @@
 // --sensor stereo --async-mapping` extracted both images in 6.5 ms per frame
 // alone, 12.4 ms beside a nice-19 busy loop, 13.6 ms pinned to one CPU.
 //
-// submit() therefore wakes the worker with the caller's current CPU taken
-// out of the worker's affinity, so it starts on another core (and preempts
-// lower-priority work there); the job first gives the worker the caller's
+// submit(), post() and share() therefore wake the worker with the caller's
+// current CPU taken out of the worker's affinity, so it starts on another
+// core (and preempts lower-priority work there, though under EEVDF not
+// always at once: share()); the job first gives the worker the caller's
 // whole affinity back, so the scheduler may move it as usual while it runs.
 // Where the caller may run on one CPU only, or off Linux, the affinity is
 // left alone. Interleaved runs, old / new (medians of the runs' median

@@ -61,10 +61,13 @@ struct DynamicFilterOptions {
   // features are the same). 1: always; 0: never (the filter, then the
   // extraction); -1 (auto): for stereo always, for mono and RGB-D with at
   // least 4 hardware threads.
-  // Stereo detects the right image on the FrameBuilder's helper thread beside
-  // the filter, and the left one after it there too unless the filter ends
-  // first (then here); the helper then describes the right image while the
-  // tracking thread describes the left. `full`, asynchronous mapping, 3 + 3
+  // Stereo detects both images, level by level, on the FrameBuilder's helper
+  // thread beside the filter; the tracking thread takes the levels left once
+  // the filter is done, then the two threads share the levels' description
+  // (HelperThread::share_async, tracking/frame_builder.h). Measured when the
+  // helper detected the right image and then the left one unless the filter
+  // ended first, and described the right image while the tracking thread
+  // described the left: `full`, asynchronous mapping, 3 + 3
   // interleaved runs, track call medians without -> with: KITTI 06 with the
   // network (dm05) paced 20.64 -> 19.08 ms (with the labels' time 23.03 ->
   // 20.90), unpaced 23.23 -> 21.42 (26.04 -> 23.81); the synthetic stereo
