@@ -143,7 +143,23 @@ TEST(FrameBuilder, RefusesABadExclusionMask) {
     } catch (const std::invalid_argument& e) {
       EXPECT_NE(std::string(e.what()).find("exclude mask"), std::string::npos) << e.what();
     }
+    // The same when the mask comes while both images' levels are detected
+    // (the levels shared with the helper thread).
+    try {
+      builder.stereo(f.image, f.right, tracking::ExclusionSource([&] { return bad; }), t);
+      ADD_FAILURE() << "accepted a " << bad.cols << "x" << bad.rows << " mask beside the detection";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("exclude mask"), std::string::npos) << e.what();
+    }
   }
+  // An image the extractor refuses: its pyramid's error, not a hang of the
+  // levels that wait for that pyramid.
+  const cv::Mat empty;
+  EXPECT_THROW(builder.stereo(f.image, empty, cv::Mat(), t), std::invalid_argument);
+  EXPECT_THROW(builder.stereo(f.image, empty, tracking::ExclusionSource([] { return cv::Mat(); }), t),
+               std::invalid_argument);
+  EXPECT_THROW(builder.stereo(empty, f.right, tracking::ExclusionSource([] { return cv::Mat(); }), t),
+               std::invalid_argument);
 }
 
 }  // namespace
