@@ -11,6 +11,17 @@
 // asynchronous mapping, unpaced (3 + 3 runs), the track call went 19.5 ->
 // 17.9 ms, but local mapping starved (0-6 keyframes against 28-29) and
 // tracking was lost after 41-80 % of the frames.
+//
+// Nor a short EEVDF slice for the tracking side (Linux >= 6.12 takes
+// sched_attr.sched_runtime of a SCHED_OTHER thread as its slice, and a waking
+// thread with a shorter slice than the running one preempts it). Tried with
+// sched_setattr on the tracking thread and its helper threads, unpaced
+// asynchronous runs on Linux 6.18, track call medians' median, without ->
+// with a 300 us slice: synthetic monocular with movers (`full` + labels)
+// 9.34 -> 8.54 ms (8 + 8 runs; 100 us: 9.18), synthetic stereo with movers
+// 14.46 -> 14.60 (5 + 5), KITTI 06 `off` 11.87 -> 12.85 (6 + 6; 11.45 ->
+// 12.12 in another 4 + 4): the shorter slices preempt the tracking thread
+// more often too.
 
 #include <string>
 
