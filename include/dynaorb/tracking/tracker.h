@@ -91,6 +91,28 @@ struct TrackerOptions {
   double local_search_th_rgbd = 3.0;
   double local_search_th_mono = 1.0;
   int max_local_keyframes = 80;
+  // The local map's first ring (the keyframes that observe the frame's
+  // tracked points; tracking/sharing_keyframes.h) holds at most this many,
+  // those sharing the most points with the frame; 0 (default): all of them,
+  // as ORB-SLAM2, whose 80 (max_local_keyframes) bounds only the neighbours
+  // added after them. Where the far end of a scene stays in view, nearly
+  // every keyframe shares a point with the frame, so the local map grows
+  // with the map and so does each frame's search. On the long suite's
+  // 1500-frame stereo walk down a 62 m room (`dynaorb run kitti
+  // out/synth/stereo_m0_f1500_s4_640x480/sequences/00 --sensor stereo
+  // [--async-mapping] --tracker max_sharing_keyframes=N`):
+  //   synchronous, 0: the first ring reaches 294 keyframes (of 396) and
+  //     296k keyframe slots a frame by frame 1200, the tracking stage's
+  //     median over frames 1000-1249 4.5 ms (2.2 over frames 0-249); 80:
+  //     2.8 ms, but ATE 7.7 -> 10.0 mm (one run each: these runs repeat)
+  //   asynchronous, 3 + 3 runs: first ring up to ~155 keyframes; tracking
+  //     stage over frames 1000-1249 3.1-3.3 -> 2.8-3.0 ms, track call
+  //     median 8.8-9.1 -> 8.5-9.1 ms; ATE 18.0-26.1 / 11.7-25.4 mm (runs
+  //     move 2x)
+  // The old keyframes' points far down the room are the long constraints
+  // against drift, so the cap is the user's choice for a robot that runs
+  // for hours, not the default.
+  int max_sharing_keyframes = 0;
   // New keyframe when tracking < ratio * reference's points (ORB-SLAM2's
   // 0.75 for stereo and RGB-D). Stereo with higher ratios, measured on the
   // synthetic seeds 0-11 (synchronous; `dynaorb run kitti SEQ --tracker
@@ -272,6 +294,7 @@ void option_fields(const TrackerOptions*, F&& f) {
   f("local_search_th_rgbd", &TrackerOptions::local_search_th_rgbd);
   f("local_search_th_mono", &TrackerOptions::local_search_th_mono);
   f("max_local_keyframes", &TrackerOptions::max_local_keyframes);
+  f("max_sharing_keyframes", &TrackerOptions::max_sharing_keyframes);
   f("ref_ratio_stereo", &TrackerOptions::ref_ratio_stereo);
   f("ref_ratio_mono", &TrackerOptions::ref_ratio_mono);
   f("motion_vo_points", &TrackerOptions::motion_vo_points);

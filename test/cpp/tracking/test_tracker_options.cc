@@ -62,6 +62,7 @@ TEST(TrackerOptions, BadValuesAreRefusedByName) {
       {"'min_local_map_inliers' is -5", [](TrackerOptions& o) { o.min_local_map_inliers = -5; }},
       {"'reloc.min_inliers' is -1", [](TrackerOptions& o) { o.reloc.min_inliers = -1; }},
       {"'max_local_keyframes' is 0", [](TrackerOptions& o) { o.max_local_keyframes = 0; }},
+      {"'max_sharing_keyframes' is -1", [](TrackerOptions& o) { o.max_sharing_keyframes = -1; }},
       {"'mono_init_feature_factor' is 0", [](TrackerOptions& o) { o.mono_init_feature_factor = 0; }},
       {"'motion_th_stereo' is 0", [](TrackerOptions& o) { o.motion_th_stereo = 0; }},
       {"'reloc.wide_window' is nan", [&](TrackerOptions& o) { o.reloc.wide_window = nan; }},
