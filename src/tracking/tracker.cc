@@ -6,9 +6,9 @@
 #include <limits>
 #include <unordered_map>
 
+#include "dynaorb/core/stopwatch.h"
 #include "dynaorb/optimize/pose_optimizer.h"
 #include "dynaorb/tracking/sharing_keyframes.h"
-#include "dynaorb/core/stopwatch.h"
 
 namespace dynaorb::tracking {
 
@@ -380,21 +380,18 @@ void Tracker::update_local_map(Frame& f) {
     f.reference = reference_;
   }
   local_points_.clear();
+  // Not kept (interleaved synchronous runs of the long suite's stereo walk,
+  // tracking stage over frames 1000-1249, where 296k keyframe slots list
+  // 13.7k points): testing a slot's "already listed" stamp before the
+  // point's erased flag, 5.4 / 4.6 against 4.9 / 5.2 ms (2 + 2 runs: no
+  // difference); each keyframe holding its points' ids beside the slots and
+  // the stamps in an array by id, so that a repeat touches no point, 5.0
+  // -> 6.1 ms (one run each).
   for (const auto& k : local_keyframes_) {
     for (const auto& p : k->points()) {
-      // The stamp first: most slots repeat a point already listed (each
-      // point is in every keyframe that observes it: 296k slots for 13.7k
-      // points late in the long suite's stereo walk), and the stamp and the
-      // erased flag share a cache line (map_point.h). Same points in the
-      // same order as testing the flag first; that walk's tracking stage
-      // over frames 1000-1249 went 4.5 -> 3.9 ms synchronously (the same
-      // map and ATE) and 3.3-3.4 -> 3.1-3.3 ms asynchronously (3 + 3 runs).
-      // Not kept: each keyframe holding its points' ids beside the slots
-      // and the stamps in an array by id, so that a repeat touches no
-      // point: 5.0 -> 6.1 ms there (synchronous, one run each).
-      if (!p || p->track.local_map_frame == f.id) continue;
+      if (!p || p->erased() || p->track.local_map_frame == f.id) continue;
       p->track.local_map_frame = f.id;
-      if (!p->erased()) local_points_.push_back(p);
+      local_points_.push_back(p);
     }
   }
 }

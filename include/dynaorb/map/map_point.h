@@ -62,12 +62,6 @@ class MapPoint {
   bool erased() const { return erased_; }
   const std::shared_ptr<MapPoint>& replaced_by() const { return replaced_by_; }
 
- private:
-  // Beside the tracker's scratch below: the tracker's local map reads both
-  // for every keyframe slot (Tracker::update_local_map), one cache line.
-  bool erased_ = false;
-
- public:
   // Scratch space of the tracker (frame ids stamp which frame filled them).
   struct TrackScratch {
     long in_view_frame = -1;     // frame id for which the projection below is valid
@@ -89,6 +83,7 @@ class MapPoint {
   Eigen::Vector3d normal_ = Eigen::Vector3d::Zero();
   double min_distance_ = 0, max_distance_ = 0;
   int visible_ = 1, found_ = 1;
+  bool erased_ = false;
   std::shared_ptr<MapPoint> replaced_by_;
 };
 

@@ -104,11 +104,12 @@ struct TrackerOptions {
   //   synchronous, 0: the first ring reaches 294 keyframes (of 396) and
   //     296k keyframe slots a frame by frame 1200, the tracking stage's
   //     median over frames 1000-1249 4.5 ms (2.2 over frames 0-249); 80:
-  //     2.8 ms, but ATE 7.7 -> 10.0 mm (one run each: these runs repeat)
-  //   asynchronous, 3 + 3 runs: first ring up to ~155 keyframes; tracking
-  //     stage over frames 1000-1249 3.1-3.3 -> 2.8-3.0 ms, track call
-  //     median 8.8-9.1 -> 8.5-9.1 ms; ATE 18.0-26.1 / 11.7-25.4 mm (runs
-  //     move 2x)
+  //     2.8 ms, but ATE 7.7 -> 10.0 mm (one run each, back to back; these
+  //     runs repeat to rounding)
+  //   asynchronous, 3 + 3 interleaved runs, twice: first ring up to ~155
+  //     keyframes; tracking stage over frames 1000-1249 3.1-3.4 -> 2.8-3.0
+  //     ms, track call median 8.8-9.1 -> 8.5-9.1 ms; ATE 12.8-26.1 /
+  //     11.7-25.4 mm (runs move 2x)
   // The old keyframes' points far down the room are the long constraints
   // against drift, so the cap is the user's choice for a robot that runs
   // for hours, not the default.
