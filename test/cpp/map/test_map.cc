@@ -3,34 +3,10 @@
 #include <gtest/gtest.h>
 
 #include "dynaorb/map/map.h"
+#include "map_test_util.h"
 
 namespace dynaorb::map {
 namespace {
-
-std::shared_ptr<const Features> features(int n) {
-  auto c = std::make_shared<Calibration>();
-  c->fx = c->fy = 500;
-  c->cx = 320;
-  c->cy = 240;
-  c->inv_fx = c->inv_fy = 1.0 / 500;
-  c->max_x = 640;
-  c->max_y = 480;
-  c->bf = 40;
-  c->th_depth = 3.2;
-  c->scale = ScalePyramid::make(8, 1.2);
-  auto f = std::make_shared<Features>();
-  f->calib = c;
-  for (int i = 0; i < n; ++i) {
-    cv::KeyPoint k(float(10 + (i * 37) % 600), float(10 + (i * 53) % 460), 31, 0, 1, 0);
-    f->keys.push_back(k);
-  }
-  f->keys_un = f->keys;
-  f->descriptors = cv::Mat::zeros(n, 32, CV_8U);
-  f->u_right.assign(n, -1);
-  f->depth.assign(n, -1);
-  f->build_grid();
-  return f;
-}
 
 struct Fixture : ::testing::Test {
   Map map;
@@ -42,7 +18,7 @@ struct Fixture : ::testing::Test {
     for (int k = 0; k < 4; ++k) {
       Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
       T.translation() = Eigen::Vector3d(-0.1 * k, 0, 0);
-      kfs.push_back(std::make_shared<KeyFrame>(map.new_keyframe_id(), k, k, features(100), T));
+      kfs.push_back(std::make_shared<KeyFrame>(map.new_keyframe_id(), k, k, test::synthetic_features(100), T));
       map.add_keyframe(kfs.back());
     }
     for (int i = 0; i < 80; ++i) {
@@ -112,7 +88,7 @@ TEST_F(Fixture, ErasedKeyframeKeepsItsPoseThroughTheParent) {
 }
 
 TEST(Features, GridSearchFindsExactlyThePointsInTheWindow) {
-  auto f = features(300);
+  auto f = test::synthetic_features(300);
   const auto found = f->in_area(320, 240, 50);
   int expected = 0;
   for (int i = 0; i < f->size(); ++i)

@@ -4,32 +4,13 @@
 
 #include "dynaorb/map/map.h"
 #include "dynaorb/tracking/sharing_keyframes.h"
+#include "../map/map_test_util.h"
 
 namespace dynaorb::tracking {
 namespace {
 
 using map::KeyFrame;
 using map::MapPoint;
-
-std::shared_ptr<const map::Features> features(int n) {
-  auto c = std::make_shared<map::Calibration>();
-  c->fx = c->fy = 500;
-  c->cx = 320;
-  c->cy = 240;
-  c->inv_fx = c->inv_fy = 1.0 / 500;
-  c->max_x = 640;
-  c->max_y = 480;
-  c->scale = map::ScalePyramid::make(8, 1.2);
-  auto f = std::make_shared<map::Features>();
-  f->calib = c;
-  for (int i = 0; i < n; ++i) f->keys.emplace_back(float(10 + (i * 37) % 600), float(10 + (i * 53) % 460), 31.f);
-  f->keys_un = f->keys;
-  f->descriptors = cv::Mat::zeros(n, 32, CV_8U);
-  f->u_right.assign(n, -1);
-  f->depth.assign(n, -1);
-  f->build_grid();
-  return f;
-}
 
 // Keyframe k (0..5) observes the frame's points 0 .. 10 * (k + 1) - 1, so
 // keyframe 5 shares the most (60) and keyframe 0 the fewest (10); keyframe
@@ -38,11 +19,11 @@ struct SharingKeyframes : ::testing::Test {
   map::Map map;
   std::vector<std::shared_ptr<KeyFrame>> kfs;
   std::vector<std::shared_ptr<MapPoint>> pts;
-  map::Frame frame{100, 5.0, features(80)};
+  map::Frame frame{100, 5.0, test::synthetic_features(80)};
 
   void SetUp() override {
     for (int k = 0; k < 7; ++k) {
-      kfs.push_back(std::make_shared<KeyFrame>(map.new_keyframe_id(), k, k, features(80),
+      kfs.push_back(std::make_shared<KeyFrame>(map.new_keyframe_id(), k, k, test::synthetic_features(80),
                                                Eigen::Isometry3d::Identity()));
       map.add_keyframe(kfs.back());
     }
