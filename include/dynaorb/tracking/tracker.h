@@ -223,6 +223,15 @@ struct TrackerOptions {
   // masks 1.07 -> 0.88, off 3.53 -> 2.47 (off's ATE itself 19 -> 12 mm).
   // Not taken: `full` stays above ORB-SLAM3 either way and loses accuracy
   // without movers.
+  // Measured again at cf63433 (after the extraction shared its levels),
+  // interleaved, asynchronous, unpaced, `full` (labels / the network),
+  // values 1000 / 600 / 800, medians over the runs: synthetic mono with
+  // movers (6 runs each) track call 9.07 / 8.55 / 9.26 ms, ATE 6.4 / 6.4 /
+  // 6.1 mm (ORB-SLAM3 7.7 ms in out/bench_full36); without movers 8.21 /
+  // 6.99 / 7.34 ms, ATE 3.95 / 5.38 / 4.29 mm; MH_05 with the network (5
+  // each) 7.7 / 6.9 / 7.1 ms, ATE 16.9 / 16.8 / 17.8 mm (runs 14.7-125.6).
+  // Still not taken: 600 alone does not bring the clip with movers under
+  // ORB-SLAM3 and costs a third more error without them.
   int mono_init_release_tracked = 1000;
   int mono_init_min_keypoints = 100;  // reference and current frame: more keypoints than this
   double mono_init_window = 100.0;    // SearchForInitialization window, pixels
