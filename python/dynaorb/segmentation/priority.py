@@ -71,4 +71,3 @@ def lower_process_priority(nice: int) -> str | None:
     except (OSError, ValueError, AttributeError) as exc:  # no /proc (not Linux), or refused
         return f"{type(exc).__name__}: {exc}"
     return f"threads still being started below nice {target} after {_MAX_PASSES} passes"
-
