@@ -133,6 +133,12 @@ void SlamNode::finish() {
   // keyframes queued and a global BA has finished: a node stopped for good
   // during that wait (roslaunch escalates to SIGTERM) still leaves a file.
   if (write_trajectory_locked(pass_file(), "at shutdown") == 0) return;
+  // rosout is gone by now: on stderr, so that a wait for a long global BA
+  // does not look like a hang.
+  std::fprintf(stderr,
+               "dynaorb_node: finishing local mapping and loop closing (a running global BA may take a while); "
+               "the trajectory as it is now is already in %s\n",
+               pass_file().c_str());
   system_->wait_for_mapping();
   const size_t frames = write_trajectory_locked(pass_file(), "at shutdown, mapping done");
   if (frames > 0) {
