@@ -8,7 +8,7 @@ import pytest
 
 # Run in a child: a process cannot raise its priority back.
 CHILD = textwrap.dedent("""
-    import os, threading, time
+    import os, threading
     from dynaorb.segmentation.priority import lower_process_priority
 
     stop = threading.Event()
