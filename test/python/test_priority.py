@@ -12,7 +12,6 @@ CHILD = textwrap.dedent("""
     from dynaorb.segmentation.priority import lower_process_priority
 
     stop = threading.Event()
-    started = []
 
     def idle():
         stop.wait()
@@ -22,9 +21,7 @@ CHILD = textwrap.dedent("""
         # the lowering: those it starts before it is lowered itself keep its
         # priority unless a later pass finds them.
         for _ in range(400):
-            t = threading.Thread(target=idle, daemon=True)
-            t.start()
-            started.append(t)
+            threading.Thread(target=idle, daemon=True).start()
 
     def nice_of(tid):
         try:
