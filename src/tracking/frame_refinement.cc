@@ -1,0 +1,43 @@
+#include "dynaorb/tracking/frame_refinement.h"
+
+#include <algorithm>
+
+namespace dynaorb::tracking {
+
+std::vector<FrameObservation> frame_observations(const map::Frame& f) {
+  std::vector<FrameObservation> out;
+  if (f.size() == 0) return out;
+  const map::Calibration& c = f.calib();
+  for (int i = 0; i < f.size(); ++i) {
+    if (!f.points[i] || f.outlier[i]) continue;
+    const cv::KeyPoint& k = f.f().keys_un[i];
+    FrameObservation o;
+    o.point = f.points[i];
+    o.obs.uv = {k.pt.x, k.pt.y};
+    o.obs.u_right = f.f().u_right[i];
+    o.obs.inv_sigma2 = c.scale.inv_sigma2[k.octave];
+    out.push_back(std::move(o));
+  }
+  return out;
+}
+
+std::vector<optimize::PoseObservation> current_observations(const std::vector<FrameObservation>& obs) {
+  std::vector<optimize::PoseObservation> out;
+  out.reserve(obs.size());
+  for (const FrameObservation& o : obs)
+    if (o.point && !o.point->erased()) out.push_back({o.point->position(), o.obs});
+  return out;
+}
+
+std::optional<Eigen::Isometry3d> refine_pose(const optimize::Intrinsics& K, const Eigen::Isometry3d& T_cw_init,
+                                             const std::vector<optimize::PoseObservation>& obs, int min_points,
+                                             int rounds) {
+  if (static_cast<int>(obs.size()) < std::max(min_points, 1)) return std::nullopt;
+  optimize::PoseOptimizerOptions o;
+  o.rounds = std::max(rounds, 1);
+  const optimize::PoseOptimizerResult r = optimize::optimize_pose(K, T_cw_init, obs, o);
+  if (r.inliers < min_points) return std::nullopt;
+  return r.T_cw;
+}
+
+}  // namespace dynaorb::tracking
