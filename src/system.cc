@@ -1,6 +1,7 @@
 #include "dynaorb/system.h"
 
 #include <chrono>
+#include <deque>
 #include <limits>
 #include <map>
 #include <thread>
@@ -16,6 +17,7 @@
 #include "dynaorb/map/map.h"
 #include "dynaorb/map/map_io.h"
 #include "dynaorb/tracking/frame_builder.h"
+#include "dynaorb/tracking/frame_refinement.h"
 #include "dynaorb/core/stopwatch.h"
 
 namespace dynaorb {
@@ -68,6 +70,10 @@ struct FrameRecord {
   std::shared_ptr<map::KeyFrame> reference;
   Eigen::Isometry3d T_c_ref;
   int map;  // the keyframe keeps its last pose once its map is given up
+  // Until the frame's pose is refined (TrackerOptions::refine_lag_keyframes):
+  // its tracked points, and the count of keyframes mapped when it was tracked.
+  std::vector<tracking::FrameObservation> obs;
+  long mapped_at = 0;
 };
 
 struct System::Impl {
@@ -75,7 +81,14 @@ struct System::Impl {
   Sensor sensor;
   SystemOptions options;
   SystemCounters counters;
+  // records is written by the tracking thread (new frames) and the mapping
+  // thread (refined poses): records_mutex, taken before the map's mutex.
   std::vector<FrameRecord> records;
+  mutable std::mutex records_mutex;
+  std::deque<size_t> pending;     // records waiting for their refinement, oldest first
+  long mapped_keyframes = 0;      // keyframes local mapping has finished
+  unsigned long records_epoch = 0;  // bumped when records are cleared
+  optimize::Intrinsics refine_K;    // the tracked camera's, set with the core
   int map_index = 0;  // TrackResult::map
   TrackingState state = TrackingState::kNoImagesYet;
   long next_frame_id = 0;
@@ -164,6 +177,7 @@ struct System::Impl {
     builder = std::make_unique<tracking::FrameBuilder>(settings, calib, options.tracker.mono_init_feature_factor,
                                                        options.tracker.stereo_right_budget_max_factor);
     builder->set_exclude_margin(options.tracker.mask_margin);
+    refine_K = {calib->fx, calib->fy, calib->cx, calib->cy, calib->bf};
     if (options.vocabulary)
       database = std::make_unique<place::KeyFrameDatabase>(map, options.vocabulary, options.database);
     // Under synchronous mapping tracking waits for the optimisations: they may take every core.
@@ -175,11 +189,14 @@ struct System::Impl {
       loop.threads = loop.threads_synchronous > 0 ? loop.threads_synchronous : cores;
     }
     mapper = std::make_unique<mapping::LocalMapper>(map, sensor, mapping, options.vocabulary, database.get());
-    if (database && options.loop_closing) {
+    if (database && options.loop_closing)
       loop_closer = std::make_unique<loop::LoopCloser>(map, sensor, *database, *mapper, loop);
-      loop::LoopCloser* lc = loop_closer.get();
-      mapper->set_keyframe_sink([lc](std::shared_ptr<map::KeyFrame> kf) { lc->insert_keyframe(std::move(kf)); });
-    }
+    // Each mapped keyframe: the frames it makes old enough are refined (on the
+    // mapper's thread), then the keyframe goes to the loop closer.
+    mapper->set_keyframe_sink([this, lc = loop_closer.get()](std::shared_ptr<map::KeyFrame> kf) {
+      refine_due_frames();
+      if (lc) lc->insert_keyframe(std::move(kf));
+    });
     const tracking::TrackerOptions t = options.tracker.with_camera_fps(settings.camera.fps);
     tracker = std::make_unique<tracking::Tracker>(map, *mapper, sensor, t, options.vocabulary, database.get());
     tracker->set_localization_mode(options.localization_only);
@@ -211,7 +228,7 @@ struct System::Impl {
       r.state = TrackingState::kOk;
       r.pose = output_pose(frame.T_cw);
       r.tracked_points = out.initialized ? frame.matched_points() : out.inliers;
-      records.push_back({stamp, out.reference, out.T_c_ref, map_index});
+      record_frame(frame, stamp, out);
     } else {
       r.state = tracker->initialized() || counters.initializations > 0 ? TrackingState::kLost
                                                                        : TrackingState::kNotInitialized;
@@ -460,8 +477,79 @@ struct System::Impl {
 
   // The map, the threads' work on it, the keyframe database (through the
   // map's observer) and the filter's keyframes; the trajectory stays.
+  void record_frame(const map::Frame& frame, double stamp, const tracking::TrackOutcome& out) {
+    const tracking::TrackerOptions& o = options.tracker;
+    std::lock_guard<std::mutex> lk(records_mutex);
+    records.push_back({stamp, out.reference, out.T_c_ref, map_index, {}, mapped_keyframes});
+    // Keyframes are estimated by local BA; a localisation-only map never changes.
+    if (o.refine_lag_keyframes <= 0 || out.new_keyframe || out.initialized || options.localization_only) return;
+    records.back().obs = tracking::frame_observations(frame);
+    pending.push_back(records.size() - 1);
+    while (static_cast<int>(pending.size()) > o.refine_max_pending) {
+      release_observations(records[pending.front()]);
+      pending.pop_front();
+    }
+  }
+
+  static void release_observations(FrameRecord& r) { std::vector<tracking::FrameObservation>().swap(r.obs); }
+
+  void forget_pending() {
+    std::lock_guard<std::mutex> lk(records_mutex);
+    for (size_t i : pending) release_observations(records[i]);
+    pending.clear();
+  }
+
+
+  // On the mapper's thread, after each keyframe it finished: the frames
+  // tracked refine_lag_keyframes mapped keyframes ago or earlier get their
+  // pose solved again against their points' current positions
+  // (tracking/frame_refinement.h). The optimisations run without either lock.
+  void refine_due_frames() {
+    const int lag = options.tracker.refine_lag_keyframes;
+    struct Job {
+      size_t index;
+      std::shared_ptr<map::KeyFrame> reference;
+      Eigen::Isometry3d T_c_ref, T_ref_w;
+      std::vector<tracking::FrameObservation> obs;
+      std::vector<optimize::PoseObservation> current;
+    };
+    std::vector<Job> jobs;
+    unsigned long epoch;
+    {
+      std::lock_guard<std::mutex> lk(records_mutex);
+      ++mapped_keyframes;
+      if (lag <= 0) return;
+      while (!pending.empty() && mapped_keyframes - records[pending.front()].mapped_at >= lag) {
+        FrameRecord& r = records[pending.front()];
+        jobs.push_back({pending.front(), r.reference, r.T_c_ref, {}, std::move(r.obs), {}});
+        release_observations(r);
+        pending.pop_front();
+      }
+      epoch = records_epoch;
+    }
+    if (jobs.empty()) return;
+    {
+      std::lock_guard<std::mutex> lk(map.mutex());
+      for (Job& j : jobs) {
+        j.T_ref_w = j.reference->current_T_cw();
+        j.current = tracking::current_observations(j.obs);
+      }
+    }
+    const optimize::Intrinsics K = refine_K;
+    std::vector<std::pair<size_t, Eigen::Isometry3d>> refined;
+    for (const Job& j : jobs) {
+      const auto T_cw = tracking::refine_pose(K, j.T_c_ref * j.T_ref_w, j.current, options.tracker.refine_min_points,
+                                              options.tracker.refine_rounds);
+      if (T_cw) refined.emplace_back(j.index, *T_cw * j.T_ref_w.inverse());
+    }
+    std::lock_guard<std::mutex> lk(records_mutex);
+    if (epoch != records_epoch) return;  // the trajectory was restarted meanwhile
+    for (const auto& [index, T_c_ref] : refined) records[index].T_c_ref = T_c_ref;
+  }
+
   void drop_map() {
     if (mapper) mapper->clear_queue();
+    forget_pending();  // their points go with the map
     if (loop_closer) loop_closer->reset();
     {
       std::lock_guard<std::mutex> lk(map.mutex());
@@ -473,7 +561,12 @@ struct System::Impl {
 
   // The trajectory, the map count and the stamp order start again (reset, a loaded map).
   void restart_trajectory(TrackingState next) {
-    records.clear();
+    {
+      std::lock_guard<std::mutex> lk(records_mutex);
+      records.clear();
+      pending.clear();
+      ++records_epoch;
+    }
     map_index = 0;
     state = next;
     last_stamp = -INFINITY;
@@ -593,10 +686,18 @@ const SystemCounters& System::counters() const {
 std::vector<TrajectorySegment> System::trajectory_segments() const {
   const Impl& s = *impl_;
   std::vector<TrajectorySegment> out;
+  std::lock_guard<std::mutex> records_lock(s.records_mutex);
   std::lock_guard<std::mutex> lk(s.map.mutex());
   for (const FrameRecord& r : s.records) {
     if (out.empty() || out.back().map != r.map) out.push_back({r.map, {}});
-    out.back().poses.push_back({r.stamp, s.output_pose(r.T_c_ref * r.reference->current_T_cw())});
+    Eigen::Isometry3d T_cw = r.T_c_ref * r.reference->current_T_cw();
+    // Frames still waiting for their refinement are solved against the map
+    // as it is now (not stored: later keyframes may refine them further).
+    if (!r.obs.empty())
+      if (const auto T = tracking::refine_pose(s.refine_K, T_cw, tracking::current_observations(r.obs),
+                                               s.options.tracker.refine_min_points, s.options.tracker.refine_rounds))
+        T_cw = *T;
+    out.back().poses.push_back({r.stamp, s.output_pose(T_cw)});
   }
   return out;
 }

@@ -50,6 +50,10 @@ void TrackerOptions::validate() const {
   c.at_least("max_frames", max_frames, -1);  // -1: Camera.fps
   c.at_least("max_local_keyframes", max_local_keyframes, 1);
   c.at_least("max_sharing_keyframes", max_sharing_keyframes, 0);  // 0: all
+  c.at_least("refine_lag_keyframes", refine_lag_keyframes, 0);    // 0: off
+  c.at_least("refine_min_points", refine_min_points, 1);
+  c.at_least("refine_rounds", refine_rounds, 1);
+  c.at_least("refine_max_pending", refine_max_pending, 1);
   c.at_least("mono_init_feature_factor", mono_init_feature_factor, 1);
   c.at_least("mask_margin", mask_margin, 0);  // level pixels
   for (const auto& [name, v] : {std::pair<const char*, double>{"motion_th_stereo", motion_th_stereo},

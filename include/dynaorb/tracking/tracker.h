@@ -114,6 +114,33 @@ struct TrackerOptions {
   // against drift, so the cap is the user's choice for a robot that runs
   // for hours, not the default.
   int max_sharing_keyframes = 0;
+  // Ours (tracking/frame_refinement.h, run by System): a tracked frame's pose
+  // is solved again, against the current positions of the map points it
+  // tracked, once this many keyframes have been mapped (their local BA run)
+  // after it; frames younger than that when the trajectory is read are
+  // solved then. Keyframes are not: local BA estimates them. 0: off, each
+  // frame keeps the pose tracking found relative to its reference keyframe
+  // (ORB-SLAM2). Measured with `dynaorb bench --suite seeds --seeds 24
+  // --sensors stereo --conditions static,masks` (synchronous, repeatable),
+  // against off, the geometric mean of the per-seed ATE ratios:
+  //   5: static 0.958 (19 of 24 seeds better), ground-truth masks 0.953
+  //      (20 of 24); masks / static median 1.19 -> 1.16, seeds 0-2 1.33 -> 1.15
+  //   2: static 0.977, masks 0.982 (the points are younger)
+  //   at the end of the run only: static 0.952, masks 0.948
+  // Monocular seeds (12, static / `full` / masks, Sim3): 0.989 / 0.969 /
+  // 0.984 with 5. The per-frame RPE of the stereo seeds: static 1.003,
+  // masks 0.961.
+  int refine_lag_keyframes = 5;
+  int refine_min_points = 30;  // fewer points or inliers: the frame keeps tracking's pose
+  // Rounds of outlier classification (tracking: 4). The frame starts at
+  // tracking's pose with tracking's inliers; over the 24 stereo seeds 2
+  // rounds give the same ATE as 4 (geometric mean 1.000) for 0.7 of 1.5 ms
+  // of CPU per frame (synthetic stereo with movers, asynchronous).
+  int refine_rounds = 2;
+  // Frames waiting for their refinement at most (each holds its tracked
+  // points, ~10 kB): a camera that makes no keyframe for a long while (standing
+  // still) leaves the oldest with tracking's pose beyond this many.
+  int refine_max_pending = 600;
   // New keyframe when tracking < ratio * reference's points (ORB-SLAM2's
   // 0.75 for stereo and RGB-D). Stereo with higher ratios, measured on the
   // synthetic seeds 0-11 (synchronous; `dynaorb run kitti SEQ --tracker
@@ -232,6 +259,12 @@ struct TrackerOptions {
   // each) 7.7 / 6.9 / 7.1 ms, ATE 16.9 / 16.8 / 17.8 mm (runs 14.7-125.6).
   // Still not taken: 600 alone does not bring the clip with movers under
   // ORB-SLAM3 and costs a third more error without them.
+  // Tried at 636aee6, not taken: once the map exists, 2x instead of 4x until
+  // the release (a third extractor; before the map still 4x). Synthetic mono
+  // with movers, `full`, asynchronous, 4 + 4 interleaved runs: track call
+  // 23.5-26.0 -> 23.0-25.8 ms (a slow session; about -7 % by the medians);
+  // 12 seeds, synchronous: static median 4.99 -> 5.41 mm, `full` 5.73 ->
+  // 5.68, masks 5.14 -> 5.45.
   int mono_init_release_tracked = 1000;
   int mono_init_min_keypoints = 100;  // reference and current frame: more keypoints than this
   double mono_init_window = 100.0;    // SearchForInitialization window, pixels
@@ -305,6 +338,10 @@ void option_fields(const TrackerOptions*, F&& f) {
   f("local_search_th_mono", &TrackerOptions::local_search_th_mono);
   f("max_local_keyframes", &TrackerOptions::max_local_keyframes);
   f("max_sharing_keyframes", &TrackerOptions::max_sharing_keyframes);
+  f("refine_lag_keyframes", &TrackerOptions::refine_lag_keyframes);
+  f("refine_min_points", &TrackerOptions::refine_min_points);
+  f("refine_rounds", &TrackerOptions::refine_rounds);
+  f("refine_max_pending", &TrackerOptions::refine_max_pending);
   f("ref_ratio_stereo", &TrackerOptions::ref_ratio_stereo);
   f("ref_ratio_mono", &TrackerOptions::ref_ratio_mono);
   f("motion_vo_points", &TrackerOptions::motion_vo_points);

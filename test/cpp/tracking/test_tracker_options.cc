@@ -26,6 +26,7 @@ TEST(TrackerOptions, DefaultsAreValid) { EXPECT_NO_THROW(TrackerOptions().valida
 
 TEST(TrackerOptions, ZeroIsAcceptedWhereItMeansOff) {
   EXPECT_EQ(refusal([](TrackerOptions& o) { o.new_map_after_lost_s = 0; }), "");
+  EXPECT_EQ(refusal([](TrackerOptions& o) { o.refine_lag_keyframes = 0; }), "");
   EXPECT_EQ(refusal([](TrackerOptions& o) { o.min_frames = 0; }), "");
   EXPECT_EQ(refusal([](TrackerOptions& o) { o.stereo_right_budget_max_factor = 1; }), "");
   EXPECT_EQ(refusal([](TrackerOptions& o) { o.ref_ratio_mono = 1; }), "");
@@ -63,6 +64,10 @@ TEST(TrackerOptions, BadValuesAreRefusedByName) {
       {"'reloc.min_inliers' is -1", [](TrackerOptions& o) { o.reloc.min_inliers = -1; }},
       {"'max_local_keyframes' is 0", [](TrackerOptions& o) { o.max_local_keyframes = 0; }},
       {"'max_sharing_keyframes' is -1", [](TrackerOptions& o) { o.max_sharing_keyframes = -1; }},
+      {"'refine_lag_keyframes' is -1", [](TrackerOptions& o) { o.refine_lag_keyframes = -1; }},
+      {"'refine_min_points' is 0", [](TrackerOptions& o) { o.refine_min_points = 0; }},
+      {"'refine_rounds' is 0", [](TrackerOptions& o) { o.refine_rounds = 0; }},
+      {"'refine_max_pending' is 0", [](TrackerOptions& o) { o.refine_max_pending = 0; }},
       {"'mono_init_feature_factor' is 0", [](TrackerOptions& o) { o.mono_init_feature_factor = 0; }},
       {"'motion_th_stereo' is 0", [](TrackerOptions& o) { o.motion_th_stereo = 0; }},
       {"'reloc.wide_window' is nan", [&](TrackerOptions& o) { o.reloc.wide_window = nan; }},
