@@ -73,17 +73,18 @@ def test_synthetic_rgbd_static_masked_and_unmasked(tmp_path, synth_seeds):
 
 def test_synthetic_stereo_static_masked_and_unmasked(tmp_path, synth_seeds):
     static, ratio, unmasked = _synth_runs(tmp_path, synth_seeds, "stereo")
-    # Measured: static 0.0030 / 0.0032 / 0.0033 m; movers + masks 1.42 / 1.33 /
-    # 0.95x, median 1.33 (1.44 / 1.51 / 1.03 before the right image's budget
-    # followed the mask, TrackerOptions::stereo_right_budget_max_factor). Over
-    # seeds 0-12 the median is 1.16 (1.20 before), mean masked ATE 3.8 mm
-    # against 4.3; seeds 0 and 1 stay the worst. The 1.2x is not met on
-    # these three (the masks take 30-40 % of the texture away, the near walls
-    # most); a regression bound. The static rooms run with the same masks and no
-    # movers give the same mean ratio over seeds 0-11 (1.15) and 1.11 over seeds
-    # 0-2 (docs/slam-core.md): the masked texture, not leaking movers, and one
-    # seed's ratio moves by up to 0.76 between runs that see the same pixels.
-    # Movers without masks (seed 0) 0.0105 m.
+    # Measured: static 0.0031 / 0.0029 / 0.0033 m; movers + masks 1.19 / 1.21 /
+    # 0.92x, median 1.19, with each frame's pose solved again once five more
+    # keyframes are mapped (TrackerOptions::refine_lag_keyframes); 1.42 / 1.33 /
+    # 0.95 (1.33) without that, 1.44 / 1.51 / 1.03 before the right image's
+    # budget followed the mask (TrackerOptions::stereo_right_budget_max_factor).
+    # Over seeds 0-23 the median is 1.18 (1.19 without the refinement). The
+    # issue's 1.2x is met on these three by a hair; the bound leaves room for
+    # another CPU's rounding, since one seed's ratio moves by up to 0.76
+    # between runs that see the same pixels. The masks take 30-40 % of the
+    # texture away, the near walls most: static rooms run with the same masks
+    # and no movers give a mean ratio of 1.15 over seeds 0-11 and 1.11 over
+    # seeds 0-2 (docs/slam-core.md). Movers without masks (seed 0) 0.0105 m.
     assert max(static) <= 0.01
-    assert ratio <= 1.4
+    assert ratio <= 1.3
     assert unmasked["ate"]["rmse"] >= 1.5 * static[0]
