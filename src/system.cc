@@ -475,8 +475,6 @@ struct System::Impl {
     return r;
   }
 
-  // The map, the threads' work on it, the keyframe database (through the
-  // map's observer) and the filter's keyframes; the trajectory stays.
   void record_frame(const map::Frame& frame, double stamp, const tracking::TrackOutcome& out) {
     const tracking::TrackerOptions& o = options.tracker;
     std::lock_guard<std::mutex> lk(records_mutex);
@@ -498,7 +496,6 @@ struct System::Impl {
     for (size_t i : pending) release_observations(records[i]);
     pending.clear();
   }
-
 
   // On the mapper's thread, after each keyframe it finished: the frames
   // tracked refine_lag_keyframes mapped keyframes ago or earlier get their
@@ -547,6 +544,8 @@ struct System::Impl {
     for (const auto& [index, T_c_ref] : refined) records[index].T_c_ref = T_c_ref;
   }
 
+  // The map, the threads' work on it, the keyframe database (through the
+  // map's observer) and the filter's keyframes; the trajectory stays.
   void drop_map() {
     if (mapper) mapper->clear_queue();
     forget_pending();  // their points go with the map
@@ -685,19 +684,33 @@ const SystemCounters& System::counters() const {
 }
 std::vector<TrajectorySegment> System::trajectory_segments() const {
   const Impl& s = *impl_;
+  // Frames still waiting for their refinement are solved against the map as
+  // it is now (not stored: later keyframes may refine them further), after
+  // both locks are released, so that tracking and mapping go on meanwhile.
+  struct Pose {
+    double stamp;
+    int map;
+    Eigen::Isometry3d T_cw;
+    std::vector<optimize::PoseObservation> pending;
+  };
+  std::vector<Pose> poses;
+  {
+    std::lock_guard<std::mutex> records_lock(s.records_mutex);
+    std::lock_guard<std::mutex> lk(s.map.mutex());
+    poses.reserve(s.records.size());
+    for (const FrameRecord& r : s.records)
+      poses.push_back({r.stamp, r.map, r.T_c_ref * r.reference->current_T_cw(),
+                       r.obs.empty() ? std::vector<optimize::PoseObservation>() : tracking::current_observations(r.obs)});
+  }
+  const tracking::TrackerOptions& o = s.options.tracker;
   std::vector<TrajectorySegment> out;
-  std::lock_guard<std::mutex> records_lock(s.records_mutex);
-  std::lock_guard<std::mutex> lk(s.map.mutex());
-  for (const FrameRecord& r : s.records) {
-    if (out.empty() || out.back().map != r.map) out.push_back({r.map, {}});
-    Eigen::Isometry3d T_cw = r.T_c_ref * r.reference->current_T_cw();
-    // Frames still waiting for their refinement are solved against the map
-    // as it is now (not stored: later keyframes may refine them further).
-    if (!r.obs.empty())
-      if (const auto T = tracking::refine_pose(s.refine_K, T_cw, tracking::current_observations(r.obs),
-                                               s.options.tracker.refine_min_points, s.options.tracker.refine_rounds))
+  for (const Pose& p : poses) {
+    if (out.empty() || out.back().map != p.map) out.push_back({p.map, {}});
+    Eigen::Isometry3d T_cw = p.T_cw;
+    if (!p.pending.empty())
+      if (const auto T = tracking::refine_pose(s.refine_K, T_cw, p.pending, o.refine_min_points, o.refine_rounds))
         T_cw = *T;
-    out.back().poses.push_back({r.stamp, s.output_pose(T_cw)});
+    out.back().poses.push_back({p.stamp, s.output_pose(T_cw)});
   }
   return out;
 }
