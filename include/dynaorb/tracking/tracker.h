@@ -123,13 +123,18 @@ struct TrackerOptions {
   // (ORB-SLAM2). Measured with `dynaorb bench --suite seeds --seeds 24
   // --sensors stereo --conditions static,masks` (synchronous, repeatable),
   // against off, the geometric mean of the per-seed ATE ratios:
-  //   5: static 0.958 (19 of 24 seeds better), ground-truth masks 0.953
-  //      (20 of 24); masks / static median 1.19 -> 1.16, seeds 0-2 1.33 -> 1.15
-  //   2: static 0.977, masks 0.982 (the points are younger)
-  //   at the end of the run only: static 0.952, masks 0.948
+  //   5: static 0.956 (17 of 24 seeds better), ground-truth masks 0.952
+  //      (20 of 24); masks / static median 1.19 -> 1.18, seeds 0-2 1.33 -> 1.19
+  //   a first version (refined when the keyframe was made, before its local
+  //   BA): 5 gave 0.958 / 0.953, 2 gave 0.977 / 0.982 (the points are
+  //   younger), refining only at the end of the run 0.952 / 0.948
   // Monocular seeds (12, static / `full` / masks, Sim3): 0.989 / 0.969 /
-  // 0.984 with 5. The per-frame RPE of the stereo seeds: static 1.003,
-  // masks 0.961.
+  // 0.984 (first version). The per-frame RPE of the stereo seeds (first
+  // version): static 1.003, masks 0.961. Asynchronous mapping, interleaved
+  // unpaced runs of seed 0 with movers, `full` (6 + 6 mono, 4 + 4 stereo):
+  // ATE 5.53 -> 4.48 mm (mono), 3.46 -> 3.06 mm (stereo); track call median
+  // 26.4 -> 27.7 / 44.7 -> 46.7 ms (a slow session; run ranges overlap), the
+  // refinement 0.7 ms of the mapper's CPU per refined frame (2 rounds).
   int refine_lag_keyframes = 5;
   int refine_min_points = 30;  // fewer points or inliers: the frame keeps tracking's pose
   // Rounds of outlier classification (tracking: 4). The frame starts at
