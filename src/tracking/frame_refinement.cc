@@ -24,8 +24,13 @@ std::vector<FrameObservation> frame_observations(const map::Frame& f) {
 std::vector<optimize::PoseObservation> current_observations(const std::vector<FrameObservation>& obs) {
   std::vector<optimize::PoseObservation> out;
   out.reserve(obs.size());
-  for (const FrameObservation& o : obs)
-    if (o.point && !o.point->erased()) out.push_back({o.point->position(), o.obs});
+  for (const FrameObservation& o : obs) {
+    // A point fused into another since goes on as that one (ORB-SLAM2 follows
+    // one replacement for the last frame; here the frame may be older).
+    const map::MapPoint* p = o.point.get();
+    for (int hops = 0; p && p->erased() && p->replaced_by() && hops < 8; ++hops) p = p->replaced_by().get();
+    if (p && !p->erased()) out.push_back({p->position(), o.obs});
+  }
   return out;
 }
 

@@ -33,8 +33,9 @@ struct FrameObservation {
 // their keypoints. Reads the frame only.
 std::vector<FrameObservation> frame_observations(const map::Frame& f);
 
-// The observations whose map points are still in the map, each with its
-// point's current position. The caller holds the map's mutex.
+// The observations whose map points are still in the map, or were fused
+// into one that is (Map::replace_point), each with that point's current
+// position. The caller holds the map's mutex.
 std::vector<optimize::PoseObservation> current_observations(const std::vector<FrameObservation>& obs);
 
 // Motion-only BA (optimize::optimize_pose: Huber, `rounds` rounds of outlier

@@ -104,6 +104,19 @@ TEST_F(FrameRefinement, OnlyPointsStillInTheMapCountAtTheirNewPositions) {
   bool found = false;
   for (const optimize::PoseObservation& o : obs) found = found || o.point_world.isApprox(moved);
   EXPECT_TRUE(found);
+  // A point fused into another since counts as that one.
+  auto keep = std::make_shared<MapPoint>(map.new_point_id(), Eigen::Vector3d(1, 2, 9), kf.get(), 0);
+  map.add_point(keep);
+  map.replace_point(pts[61], keep);
+  ASSERT_TRUE(pts[61]->erased());
+  {
+    std::lock_guard<std::mutex> lk(map.mutex());
+    obs = current_observations(kept);
+  }
+  ASSERT_EQ(obs.size(), 25u);
+  found = false;
+  for (const optimize::PoseObservation& o : obs) found = found || o.point_world.isApprox(keep->position());
+  EXPECT_TRUE(found);
   // Too few points left for the frame's minimum: tracking's pose stays.
   EXPECT_FALSE(refine_pose(K, T_cw, obs, 30).has_value());
   EXPECT_TRUE(refine_pose(K, T_cw, obs, 20).has_value());
