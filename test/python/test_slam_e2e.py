@@ -73,7 +73,7 @@ def test_synthetic_rgbd_static_masked_and_unmasked(tmp_path, synth_seeds):
 
 def test_synthetic_stereo_static_masked_and_unmasked(tmp_path, synth_seeds):
     static, ratio, unmasked = _synth_runs(tmp_path, synth_seeds, "stereo")
-    # Measured: static 0.0031 / 0.0029 / 0.0033 m; movers + masks 1.19 / 1.21 /
+    # Measured: static 0.0031 / 0.0029 / 0.0033 m; movers + masks 1.19 / 1.28 /
     # 0.92x, median 1.19, with each frame's pose solved again once five more
     # keyframes are mapped (TrackerOptions::refine_lag_keyframes); 1.42 / 1.33 /
     # 0.95 (1.33) without that, 1.44 / 1.51 / 1.03 before the right image's

@@ -123,8 +123,9 @@ struct TrackerOptions {
   // (ORB-SLAM2). Measured with `dynaorb bench --suite seeds --seeds 24
   // --sensors stereo --conditions static,masks` (synchronous, repeatable),
   // against off, the geometric mean of the per-seed ATE ratios:
-  //   5: static 0.956 (17 of 24 seeds better), ground-truth masks 0.952
-  //      (20 of 24); masks / static median 1.19 -> 1.18, seeds 0-2 1.33 -> 1.19
+  //   5: static 0.947 (16 of 24 seeds better), ground-truth masks 0.937
+  //      (21 of 24); masks / static median 1.19 -> 1.18, seeds 0-2 1.33 -> 1.19;
+  //      0.956 / 0.952 before fused points were followed to their replacement
   //   a first version (refined when the keyframe was made, before its local
   //   BA): 5 gave 0.958 / 0.953, 2 gave 0.977 / 0.982 (the points are
   //   younger), refining only at the end of the run 0.952 / 0.948
