@@ -134,14 +134,15 @@ struct TrackerOptions {
   // version): static 1.003, masks 0.961. Asynchronous mapping, interleaved
   // unpaced runs of seed 0 with movers, `full` (6 + 6 mono, 4 + 4 stereo):
   // ATE 5.53 -> 4.48 mm (mono), 3.46 -> 3.06 mm (stereo); track call median
-  // 26.4 -> 27.7 / 44.7 -> 46.7 ms (a slow session; run ranges overlap), the
-  // refinement 0.7 ms of the mapper's CPU per refined frame (2 rounds).
+  // 26.4 -> 27.7 / 44.7 -> 46.7 ms (a slow session, 4 rounds then; run
+  // ranges overlap).
   int refine_lag_keyframes = 5;
   int refine_min_points = 30;  // fewer points or inliers: the frame keeps tracking's pose
   // Rounds of outlier classification (tracking: 4). The frame starts at
   // tracking's pose with tracking's inliers; over the 24 stereo seeds 2
-  // rounds give the same ATE as 4 (geometric mean 1.000) for 0.7 of 1.5 ms
-  // of CPU per frame (synthetic stereo with movers, asynchronous).
+  // rounds give the same ATE as 4 (geometric mean 1.000) for 1.0 instead of
+  // 1.5 ms of the mapper's CPU per refined frame (thread CPU time, synthetic
+  // stereo with movers, asynchronous; 1 round 0.7 ms).
   int refine_rounds = 2;
   // Frames waiting for their refinement at most (each holds its tracked
   // points, ~10 kB): a camera that makes no keyframe for a long while (standing
