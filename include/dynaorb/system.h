@@ -185,6 +185,10 @@ class System {
   // rectified stereo the unrectified left camera); world: its first pose.
   // When a lost map was given up (TrackResult::map), the map with the most
   // tracked frames, the latest of equals (ORB-SLAM3 saves its largest map).
+  // Frames still waiting for their refinement (TrackerOptions::
+  // refine_lag_keyframes) are solved against the map as it is now, each
+  // call: about a millisecond each, a few dozen of them in a moving camera's
+  // run (at most refine_max_pending), so not a call for every frame.
   Trajectory trajectory() const;
   // Every map's poses, in the order of the maps; one segment without a new map.
   std::vector<TrajectorySegment> trajectory_segments() const;

@@ -4,20 +4,19 @@
 
 namespace dynaorb::tracking {
 
+optimize::Observation keypoint_observation(const map::Frame& f, int i) {
+  const cv::KeyPoint& k = f.f().keys_un[i];
+  optimize::Observation o;
+  o.uv = {k.pt.x, k.pt.y};
+  o.u_right = f.f().u_right[i];
+  o.inv_sigma2 = f.calib().scale.inv_sigma2[k.octave];
+  return o;
+}
+
 std::vector<FrameObservation> frame_observations(const map::Frame& f) {
   std::vector<FrameObservation> out;
-  if (f.size() == 0) return out;
-  const map::Calibration& c = f.calib();
-  for (int i = 0; i < f.size(); ++i) {
-    if (!f.points[i] || f.outlier[i]) continue;
-    const cv::KeyPoint& k = f.f().keys_un[i];
-    FrameObservation o;
-    o.point = f.points[i];
-    o.obs.uv = {k.pt.x, k.pt.y};
-    o.obs.u_right = f.f().u_right[i];
-    o.obs.inv_sigma2 = c.scale.inv_sigma2[k.octave];
-    out.push_back(std::move(o));
-  }
+  for (int i = 0; i < f.size(); ++i)
+    if (f.points[i] && !f.outlier[i]) out.push_back({f.points[i], keypoint_observation(f, i)});
   return out;
 }
 

@@ -8,6 +8,7 @@
 
 #include "dynaorb/core/stopwatch.h"
 #include "dynaorb/optimize/pose_optimizer.h"
+#include "dynaorb/tracking/frame_refinement.h"
 #include "dynaorb/tracking/sharing_keyframes.h"
 
 namespace dynaorb::tracking {
@@ -268,13 +269,7 @@ int Tracker::optimize_pose(Frame& f) {
   std::vector<int> slot;
   for (int i = 0; i < f.size(); ++i) {
     if (!f.points[i]) continue;
-    const cv::KeyPoint& k = f.f().keys_un[i];
-    optimize::PoseObservation o;
-    o.point_world = f.points[i]->position();
-    o.obs.uv = {k.pt.x, k.pt.y};
-    o.obs.u_right = f.f().u_right[i];
-    o.obs.inv_sigma2 = c.scale.inv_sigma2[k.octave];
-    obs.push_back(o);
+    obs.push_back({f.points[i]->position(), keypoint_observation(f, i)});
     slot.push_back(i);
   }
   const optimize::PoseOptimizerResult r =

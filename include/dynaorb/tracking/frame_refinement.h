@@ -29,6 +29,10 @@ struct FrameObservation {
   optimize::Observation obs;  // undistorted pixel, right coordinate (-1: none), level weight
 };
 
+// Keypoint i of f as pose optimisation observes it: its undistorted pixel,
+// its right coordinate (-1: none) and its level's weight.
+optimize::Observation keypoint_observation(const map::Frame& f, int i);
+
 // f's matched map points that pose optimisation kept (not outliers), with
 // their keypoints. Reads the frame only.
 std::vector<FrameObservation> frame_observations(const map::Frame& f);
