@@ -5,6 +5,9 @@ the runner writes its outputs for the frames so far (trajectory, map points,
 stats.json with "interrupted"), as it does at the end of a sequence. A second
 Ctrl-C quits at once (KeyboardInterrupt). Signals can only be caught in the
 main thread: a run started from another thread is interrupted as before.
+The handler goes in over whatever was there, SIG_IGN included (a run started
+in the background of a shell without job control, where SIGINT starts
+ignored, still stops cleanly on `kill -INT`), and that handler is handed back.
 """
 from __future__ import annotations
 
