@@ -489,6 +489,13 @@ struct System::Impl {
     }
   }
 
+  // tracking::refine_pose with this System's camera and options; nullopt:
+  // the frame keeps the pose it has.
+  std::optional<Eigen::Isometry3d> refine(const Eigen::Isometry3d& T_cw,
+                                          const std::vector<optimize::PoseObservation>& obs) const {
+    return tracking::refine_pose(refine_K, T_cw, obs, options.tracker.refine_min_points, options.tracker.refine_rounds);
+  }
+
   static void release_observations(FrameRecord& r) { std::vector<tracking::FrameObservation>().swap(r.obs); }
 
   void forget_pending() {
@@ -532,13 +539,10 @@ struct System::Impl {
         j.current = tracking::current_observations(j.obs);
       }
     }
-    const optimize::Intrinsics K = refine_K;
     std::vector<std::pair<size_t, Eigen::Isometry3d>> refined;
-    for (const Job& j : jobs) {
-      const auto T_cw = tracking::refine_pose(K, j.T_c_ref * j.T_ref_w, j.current, options.tracker.refine_min_points,
-                                              options.tracker.refine_rounds);
-      if (T_cw) refined.emplace_back(j.index, *T_cw * j.T_ref_w.inverse());
-    }
+    for (const Job& j : jobs)
+      if (const auto T_cw = refine(j.T_c_ref * j.T_ref_w, j.current))
+        refined.emplace_back(j.index, *T_cw * j.T_ref_w.inverse());
     std::lock_guard<std::mutex> lk(records_mutex);
     if (epoch != records_epoch) return;  // the trajectory was restarted meanwhile
     for (const auto& [index, T_c_ref] : refined) records[index].T_c_ref = T_c_ref;
@@ -699,18 +703,13 @@ std::vector<TrajectorySegment> System::trajectory_segments() const {
     std::lock_guard<std::mutex> lk(s.map.mutex());
     poses.reserve(s.records.size());
     for (const FrameRecord& r : s.records)
-      poses.push_back({r.stamp, r.map, r.T_c_ref * r.reference->current_T_cw(),
-                       r.obs.empty() ? std::vector<optimize::PoseObservation>() : tracking::current_observations(r.obs)});
+      poses.push_back({r.stamp, r.map, r.T_c_ref * r.reference->current_T_cw(), tracking::current_observations(r.obs)});
   }
-  const tracking::TrackerOptions& o = s.options.tracker;
   std::vector<TrajectorySegment> out;
   for (const Pose& p : poses) {
     if (out.empty() || out.back().map != p.map) out.push_back({p.map, {}});
-    Eigen::Isometry3d T_cw = p.T_cw;
-    if (!p.pending.empty())
-      if (const auto T = tracking::refine_pose(s.refine_K, T_cw, p.pending, o.refine_min_points, o.refine_rounds))
-        T_cw = *T;
-    out.back().poses.push_back({p.stamp, s.output_pose(T_cw)});
+    const std::optional<Eigen::Isometry3d> refined = s.refine(p.T_cw, p.pending);  // none: nothing pending, or too few points
+    out.back().poses.push_back({p.stamp, s.output_pose(refined ? *refined : p.T_cw)});
   }
   return out;
 }
