@@ -2,7 +2,9 @@
 // Private to src/optimize: the pose parameterisation and the reprojection residuals shared by the
 // motion-only optimiser (pose_optimizer.cc) and local bundle adjustment (bundle_adjuster.cc).
 //
-// Pose parameterisation. A pose T_cw is one 7-double parameter block [qx qy qz qw tx ty tz]
+// Pose parameterisation (bundle adjustment; the motion-only optimiser solves each round for the
+// same left-perturbation delta on a plain 6-vector and applies it with PoseManifold::Plus). A
+// pose T_cw is one 7-double parameter block [qx qy qz qw tx ty tz]
 // (Eigen quaternion order) with the 6-DoF manifold PoseManifold below, whose update is a left
 // perturbation
 //     R <- Exp(w) * R,   t <- Exp(w) * t + v,   delta = [w, v]
@@ -248,32 +250,6 @@ inline void pose_jacobian(const Eigen::Matrix<double, N, 3>& dr_dXc, const Eigen
     row[6] = 0;
   }
 }
-
-// Motion-only cost: the world point is a constant; one pose block.
-template <int N>
-class PoseOnlyCost final : public ceres::SizedCostFunction<N, 7> {
- public:
-  PoseOnlyCost(const Intrinsics& K, const Eigen::Vector3d& Xw, const Observation& obs)
-      : K_(K), Xw_(Xw), obs_(obs), s_(std::sqrt(obs.inv_sigma2)) {}
-
-  bool Evaluate(double const* const* params, double* residuals, double** jacobians) const override {
-    const Eigen::Vector3d Xc = transform_point(params[0], Xw_);
-    if (!jacobians || !jacobians[0]) {
-      reprojection_residual<N>(K_, obs_, s_, Xc, residuals, nullptr);
-      return true;
-    }
-    Eigen::Matrix<double, N, 3> dr_dXc;
-    reprojection_residual<N>(K_, obs_, s_, Xc, residuals, &dr_dXc);
-    pose_jacobian<N>(dr_dXc, Xc, jacobians[0]);
-    return true;
-  }
-
- private:
-  Intrinsics K_;
-  Eigen::Vector3d Xw_;
-  Observation obs_;
-  double s_;  // sqrt(inv_sigma2)
-};
 
 // Bundle-adjustment cost of a problem with only monocular observations (N = 2): pose block (7)
 // and point block (3). Problems with stereo observations use BaSplitCost.
