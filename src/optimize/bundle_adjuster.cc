@@ -92,11 +92,6 @@ bool abort_requested(const std::atomic<bool>* abort) {
   return abort && abort->load(std::memory_order_relaxed);
 }
 
-// Ceres' rho for HuberLoss(a) with a^2 = delta2, applied to s = chi2.
-double huber(double s, double delta2) {
-  return s <= delta2 ? s : 2.0 * std::sqrt(delta2 * s) - delta2;
-}
-
 // The share of the reduced camera matrix's keyframe-by-keyframe blocks that are non-zero: ordered
 // pairs of free keyframes that observe a common point, the diagonal included, over n^2.
 // kfs_of_point: per point, the free keyframes (0..n-1) observing it. Counting stops at `enough`.
@@ -194,7 +189,7 @@ struct Workspace {
       const double chi2 = detail::observation_chi2(in.K, o.obs, Xc);
       const double threshold = o.obs.stereo() ? options.chi2_stereo : options.chi2_mono;
       (*outlier)[i] = !(chi2 <= threshold) || Xc.z() <= 0;  // NaN-safe
-      if (Xc.z() > 0) cost += 0.5 * huber(chi2, threshold);
+      if (Xc.z() > 0) cost += 0.5 * detail::huber(chi2, threshold);
     }
     return cost;
   }

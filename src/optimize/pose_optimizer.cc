@@ -82,8 +82,8 @@ void robustify(double delta2, double* r, double* J) {
   double s = 0;
   for (int i = 0; i < N; ++i) s += r[i] * r[i];
   if (!(s > delta2)) return;
-  const double root = std::sqrt(delta2 * s);
-  const double rho = 2.0 * root - delta2;
+  const double rho = detail::huber(s, delta2);
+  const double root = 0.5 * (rho + delta2);  // sqrt(delta2 s)
   const double w = std::sqrt(rho / s);
   if (J) {
     const double c = (delta2 - root) / (w * s * s);  // 2 dw/ds
@@ -122,8 +122,8 @@ Eigen::Matrix3d so3_left_jacobian(const Eigen::Vector3d& w) {
 class PoseRoundCost final : public ceres::CostFunction {
  public:
   PoseRoundCost(const Intrinsics& K, const std::vector<PoseObservation>& observations,
-                const std::vector<double>& sqrt_info, const std::vector<int>& active, bool robust,
-                const PoseOptimizerOptions& options, const double* pose0)
+                const std::vector<int>& active, bool robust, const PoseOptimizerOptions& options,
+                const double* pose0)
       : K_(K), robust_(robust), chi2_mono_(options.chi2_mono), chi2_stereo_(options.chi2_stereo) {
     const Eigen::Matrix3d R0 = Eigen::Map<const Eigen::Quaterniond>(pose0).toRotationMatrix();
     const Eigen::Vector3d t0(pose0[4], pose0[5], pose0[6]);
@@ -131,7 +131,7 @@ class PoseRoundCost final : public ceres::CostFunction {
     int rows = 0;
     for (int i : active) {
       const PoseObservation& o = observations[i];
-      items_.push_back({R0 * o.point_world + t0, &o.obs, sqrt_info[i]});
+      items_.push_back({R0 * o.point_world + t0, &o.obs, std::sqrt(o.obs.inv_sigma2)});
       rows += o.obs.stereo() ? 3 : 2;
     }
     set_num_residuals(rows);
@@ -211,8 +211,6 @@ PoseOptimizerResult optimize_pose(const Intrinsics& K, const Eigen::Isometry3d& 
   double pose[7];
   detail::pose_to_params(T_cw_init, pose);
 
-  std::vector<double> sqrt_info(n);
-  for (size_t i = 0; i < n; ++i) sqrt_info[i] = std::sqrt(observations[i].obs.inv_sigma2);
   const detail::PoseManifold manifold;  // moves a round's start pose by its solved delta
 
   const ceres::Solver::Options solver_options =
@@ -233,9 +231,8 @@ PoseOptimizerResult optimize_pose(const Intrinsics& K, const Eigen::Isometry3d& 
     if (active.size() < 3) break;  // keep the previous estimate and classification
     double delta[6] = {0, 0, 0, 0, 0, 0};
     ceres::Problem problem;
-    problem.AddResidualBlock(new PoseRoundCost(K, observations, sqrt_info, active,
-                                               robust_in_round(round, options.rounds), options,
-                                               pose),
+    const bool robust = robust_in_round(round, options.rounds);
+    problem.AddResidualBlock(new PoseRoundCost(K, observations, active, robust, options, pose),
                              nullptr, delta);
 
     ceres::Solver::Summary summary;

@@ -204,6 +204,11 @@ inline void reprojection_residual(const Intrinsics& K, const Observation& obs, d
   }
 }
 
+// Ceres' rho for HuberLoss(a) with a^2 = delta2, applied to s = chi2.
+inline double huber(double s, double delta2) {
+  return s <= delta2 ? s : 2.0 * std::sqrt(delta2 * s) - delta2;
+}
+
 // chi2 = e^T * inv_sigma2 * e of one observation (mono or stereo by obs.stereo()).
 inline double observation_chi2(const Intrinsics& K, const Observation& obs,
                                const Eigen::Vector3d& Xc) {
