@@ -140,7 +140,7 @@ struct Workspace {
   const BaOptions& options;
   std::vector<PoseBlock> poses;
   std::vector<Eigen::Vector3d>& points;
-  std::vector<bool> valid;  // indices in range
+  std::vector<bool> valid;  // indices in range, finite data (else an outlier, never solved)
   std::vector<std::unique_ptr<ceres::CostFunction>> costs;
   ceres::HuberLoss huber_mono, huber_stereo;
   detail::PoseManifold manifold;               // whole pose (monocular problems)
@@ -155,9 +155,13 @@ struct Workspace {
       detail::pose_to_params(p.keyframes[k].T_cw, poses[k].data());
     const int nk = static_cast<int>(p.keyframes.size()), np = static_cast<int>(p.points.size());
     valid.resize(p.observations.size());
+    // One NaN residual makes Ceres refuse every step of the whole window, so an observation of
+    // a non-finite pose or point, or one not usable() itself, is left out (its point and pose
+    // are returned as given when nothing else observes them).
     for (size_t i = 0; i < valid.size(); ++i) {
       const BaObservation& ob = p.observations[i];
-      valid[i] = ob.keyframe >= 0 && ob.keyframe < nk && ob.point >= 0 && ob.point < np;
+      valid[i] = ob.keyframe >= 0 && ob.keyframe < nk && ob.point >= 0 && ob.point < np && ob.obs.usable() &&
+                 p.points[ob.point].allFinite() && p.keyframes[ob.keyframe].T_cw.matrix().allFinite();
       split_pose |= valid[i] && ob.obs.stereo();
     }
   }

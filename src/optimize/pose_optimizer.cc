@@ -217,10 +217,15 @@ PoseOptimizerResult optimize_pose(const Intrinsics& K, const Eigen::Isometry3d& 
       pose_solver_options(std::max(1, options.iterations_per_round));
 
   // The first round leaves out the points behind the initial pose (outliers whatever the
-  // solver does; projected at kMinDepth their residual would outweigh all the others).
-  std::vector<bool> outlier(n, false);
-  for (size_t i = 0; i < n; ++i)
-    outlier[i] = !(detail::transform_point(pose, observations[i].point_world).z() > 0);
+  // solver does; projected at kMinDepth their residual would outweigh all the others). Non-
+  // finite observations and points are outliers in every round: in the round's one residual
+  // block a single NaN makes Ceres refuse every step, and the classification at the unmoved
+  // pose would then drop the frame's good observations too.
+  std::vector<bool> usable(n), outlier(n);
+  for (size_t i = 0; i < n; ++i) {
+    usable[i] = observations[i].obs.usable() && observations[i].point_world.allFinite();
+    outlier[i] = !usable[i] || !(detail::transform_point(pose, observations[i].point_world).z() > 0);
+  }
   bool classified = false;
   std::vector<int> active;
   active.reserve(n);
@@ -247,7 +252,7 @@ PoseOptimizerResult optimize_pose(const Intrinsics& K, const Eigen::Isometry3d& 
       const Eigen::Vector3d Xc = detail::transform_point(pose, observations[i].point_world);
       const double chi2 = detail::observation_chi2(K, obs, Xc);
       const double threshold = obs.stereo() ? options.chi2_stereo : options.chi2_mono;
-      outlier[i] = !(chi2 <= threshold) || Xc.z() <= 0;  // NaN-safe
+      outlier[i] = !usable[i] || !(chi2 <= threshold) || Xc.z() <= 0;  // NaN-safe
     }
     classified = true;
   }

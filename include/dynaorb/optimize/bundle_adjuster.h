@@ -4,7 +4,9 @@
 // 3-D stereo) under a Huber loss; a first pass, then the observations whose
 // chi2 exceeds the threshold (or whose point lies behind the camera) are
 // excluded and the problem is solved again. Can be aborted from another
-// thread (tracking asks for a new keyframe).
+// thread (tracking asks for a new keyframe). Observations with an index out
+// of range, not usable(), or of a non-finite point or pose are outliers and
+// never enter the problem.
 #include <atomic>
 #include <vector>
 

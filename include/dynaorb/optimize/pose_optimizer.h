@@ -2,7 +2,8 @@
 // Motion-only bundle adjustment (ORB-SLAM2's PoseOptimization): the camera
 // pose from 3-D points fixed in the world and their observations, Huber loss,
 // several rounds that classify observations as inliers / outliers by their
-// chi2 and optimise again on the inliers only.
+// chi2 and optimise again on the inliers only. Observations that are not
+// usable() or whose point is not finite are outliers from the start.
 #include <vector>
 
 #include "dynaorb/optimize/types.h"

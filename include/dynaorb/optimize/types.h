@@ -5,6 +5,7 @@
 // the inverse variance of the keypoint's pyramid level.
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cmath>
 
 namespace dynaorb::optimize {
 
@@ -18,6 +19,13 @@ struct Observation {
   double u_right = -1;     // < 0: monocular observation
   double inv_sigma2 = 1;   // 1 / (scale_factor^level)^2
   bool stereo() const { return u_right >= 0; }
+  // Finite pixel, positive finite information and a finite right coordinate
+  // when stereo. The optimisers leave any other observation out as an outlier:
+  // one NaN residual makes Ceres refuse every step of its problem.
+  bool usable() const {
+    return std::isfinite(uv.x()) && std::isfinite(uv.y()) && std::isfinite(inv_sigma2) && inv_sigma2 > 0 &&
+           (u_right < 0 || std::isfinite(u_right));
+  }
 };
 
 // chi2 thresholds at 95 % for 2 and 3 degrees of freedom.

@@ -11,6 +11,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <thread>
 #include <vector>
@@ -258,6 +259,39 @@ TEST(BundleAdjuster, UnobservedPointAndBadIndicesAreLeftAlone) {
   EXPECT_TRUE(r.points.back() == lonely);
   EXPECT_TRUE(r.outlier.back());
   EXPECT_LT(r.final_cost, r.initial_cost);
+}
+
+// One NaN residual anywhere makes Ceres refuse every step of the window: non-finite points and
+// observations must stay out of the problem, which then converges as without them.
+TEST(BundleAdjuster, NonFiniteDataIsLeftOutAndTheRestConverges) {
+  Scene s = make_scene(11, 300, 0.0);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  // A point whose every observation goes with it, and single observations of good points.
+  const int bad_point = 17;
+  s.problem.points[bad_point] = Eigen::Vector3d(nan, 0, 1);
+  std::vector<size_t> bad_obs;
+  for (size_t i = 0; i < s.problem.observations.size() && bad_obs.size() < 3; ++i)
+    if (s.problem.observations[i].point != bad_point && i % 97 == 5) bad_obs.push_back(i);
+  ASSERT_EQ(bad_obs.size(), 3u);
+  s.problem.observations[bad_obs[0]].obs.uv.x() = nan;
+  s.problem.observations[bad_obs[1]].obs.inv_sigma2 = std::numeric_limits<double>::infinity();
+  s.problem.observations[bad_obs[2]].obs.u_right = nan;  // reads as monocular: still usable
+  const BaResult r = bundle_adjust(s.problem);
+  for (size_t i = 0; i < s.problem.observations.size(); ++i) {
+    if (s.problem.observations[i].point == bad_point) {
+      EXPECT_TRUE(r.outlier[i]) << i;
+    }
+  }
+  EXPECT_TRUE(r.outlier[bad_obs[0]]);
+  EXPECT_TRUE(r.outlier[bad_obs[1]]);
+  EXPECT_TRUE(std::isnan(r.points[bad_point].x()));  // returned as given
+  for (int k = kFixed; k < kKeyframes; ++k) {
+    SCOPED_TRACE(k);
+    EXPECT_TRUE(r.T_cw[k].matrix().allFinite());
+    EXPECT_LT(center_error(r.T_cw[k], s.truth.keyframes[k].T_cw), 0.008);
+    EXPECT_LT(rotation_error_deg(r.T_cw[k], s.truth.keyframes[k].T_cw), 0.1);
+  }
+  EXPECT_LT(r.final_cost, 0.01 * r.initial_cost);
 }
 
 // A map point behind a free keyframe that observes it (a wrong fusion can leave one there: on

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -160,6 +161,30 @@ TEST(PoseOptimizer, PointBehindCameraIsFiniteOutlier) {
   const PoseOptimizerResult clean = optimize_pose(s.K, s.T_true, in_front);
   EXPECT_LT(center_error(r.T_cw, clean.T_cw), 1e-9);
   EXPECT_LT(rotation_error_deg(r.T_cw, clean.T_cw), 1e-7);
+}
+
+TEST(PoseOptimizer, NonFiniteObservationsAreOutliersAndThePoseStaysFinite) {
+  // Every round is one residual block: a NaN in one observation makes the whole round's cost
+  // NaN, Ceres takes no step, and the classification must drop that observation so the next
+  // rounds solve without it. A NaN point is behind no camera: it must be left out from the
+  // first round.
+  Scene s = make_scene(9, 150, 0.0, 0.5, 0.5);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  const std::vector<size_t> bad = {3, 40, 77, 101, 120};
+  s.obs[bad[0]].obs.uv.x() = nan;
+  s.obs[bad[1]].obs.uv.y() = inf;
+  s.obs[bad[2]].point_world.z() = nan;
+  s.obs[bad[3]].obs.inv_sigma2 = nan;
+  s.obs[bad[4]].obs.u_right = nan;  // a NaN right coordinate reads as no stereo: kept as mono
+  std::mt19937 rng(9);
+  const Eigen::Isometry3d T_init = perturb(s.T_true, 0.05, 3 * kDeg, rng);
+  const PoseOptimizerResult r = optimize_pose(s.K, T_init, s.obs);
+  ASSERT_TRUE(r.T_cw.matrix().allFinite());
+  for (size_t i : {bad[0], bad[1], bad[2], bad[3]}) EXPECT_FALSE(r.inlier[i]) << i;
+  EXPECT_LT(center_error(r.T_cw, s.T_true), 0.01);
+  EXPECT_LT(rotation_error_deg(r.T_cw, s.T_true), 0.2);
+  EXPECT_GE(r.inliers, 135);
 }
 
 // ---------------------------------------------------------------- reference formulation
