@@ -45,6 +45,7 @@ int Matcher::search_by_projection(Frame& cur, const Frame& last, double th) cons
   const bool forward = c.sensor != Sensor::kMono && t_lc.z() > c.baseline;
   const bool backward = c.sensor != Sensor::kMono && -t_lc.z() > c.baseline;
   int n = 0;
+  std::vector<int> cand;
   for (int i = 0; i < last.size(); ++i) {
     const auto& p = last.points[i];
     if (!p || last.outlier[i] || p->erased()) continue;
@@ -54,10 +55,9 @@ int Matcher::search_by_projection(Frame& cur, const Frame& last, double th) cons
     if (!c.in_image(uv)) continue;
     const int level = fl.keys_un[i].octave;
     const double radius = th * c.scale.scale[level];
-    std::vector<int> cand;
-    if (forward) cand = fc.in_area(uv.x(), uv.y(), radius, level, -1);
-    else if (backward) cand = fc.in_area(uv.x(), uv.y(), radius, 0, level);
-    else cand = fc.in_area(uv.x(), uv.y(), radius, std::max(0, level - 1), level + 1);
+    if (forward) fc.in_area(uv.x(), uv.y(), radius, level, -1, cand);
+    else if (backward) fc.in_area(uv.x(), uv.y(), radius, 0, level, cand);
+    else fc.in_area(uv.x(), uv.y(), radius, std::max(0, level - 1), level + 1, cand);
     int best = INT_MAX, best_i = -1;
     const double ur = uv.x() - c.bf / pc.z();
     for (int j : cand) {
@@ -83,12 +83,13 @@ int Matcher::search_local_points(Frame& cur, const std::vector<std::shared_ptr<M
   const map::Calibration& c = cur.calib();
   const map::Features& fc = cur.f();
   int n = 0;
+  std::vector<int> cand;
   for (const auto& p : points) {
     if (p->erased() || p->track.in_view_frame != cur.id || p->track.matched_frame == cur.id) continue;
     const int level = p->track.predicted_level;
     // A wider window when the point is seen obliquely (ORB-SLAM's RadiusByViewingCos).
     const double r = (p->track.view_cos > 0.998 ? 2.5 : 4.0) * th * c.scale.scale[level];
-    const auto cand = fc.in_area(p->track.proj_x, p->track.proj_y, r, level - 1, level);
+    fc.in_area(p->track.proj_x, p->track.proj_y, r, level - 1, level, cand);
     int best = INT_MAX, second = INT_MAX, best_level = -1, second_level = -1, best_i = -1;
     for (int j : cand) {
       if (slot_taken(cur, j)) continue;
@@ -201,6 +202,7 @@ int Matcher::search_by_projection(Frame& cur, const KeyFrame& kf, double th, int
     if (p) found.insert(p.get());
   RotationHistogram hist(o_.histogram_bins);
   int n = 0;
+  std::vector<int> cand;
   for (int i = 0; i < fk.size(); ++i) {
     const auto& p = kf.point(i);
     if (!p || p->erased() || found.count(p.get())) continue;
@@ -210,7 +212,8 @@ int Matcher::search_by_projection(Frame& cur, const KeyFrame& kf, double th, int
     const int level = v->predicted_level;
     const double radius = th * c.scale.scale[level];
     int best = INT_MAX, best_j = -1;
-    for (int j : fc.in_area(v->uv.x(), v->uv.y(), radius, std::max(0, level - 1), level + 1)) {
+    fc.in_area(v->uv.x(), v->uv.y(), radius, std::max(0, level - 1), level + 1, cand);
+    for (int j : cand) {
       if (cur.points[j]) continue;
       const int d = hamming(p->descriptor_data(), fc.descriptor(j));
       if (d < best) {
@@ -322,6 +325,7 @@ int Matcher::fuse(map::Map& map, KeyFrame& kf, const std::vector<std::shared_ptr
   const map::Features& f = kf.f();
   const Eigen::Vector3d center = kf.center();
   int fused = 0;
+  std::vector<int> cand;
   for (const auto& p : points) {
     if (!p || p->erased() || p->index_in(&kf) >= 0) continue;
     const std::optional<map::PointView> v = map::view_point(c, kf.T_cw(), center, *p, 0.5);
@@ -331,7 +335,8 @@ int Matcher::fuse(map::Map& map, KeyFrame& kf, const std::vector<std::shared_ptr
     const int level = v->predicted_level;
     const double radius = th * c.scale.scale[level];
     int best = INT_MAX, best_j = -1;
-    for (int j : f.in_area(uv.x(), uv.y(), radius)) {
+    f.in_area(uv.x(), uv.y(), radius, -1, -1, cand);
+    for (int j : cand) {
       const cv::KeyPoint& k = f.keys_un[j];
       if (k.octave < level - 1 || k.octave > level) continue;
       const double ex = uv.x() - k.pt.x, ey = uv.y() - k.pt.y;

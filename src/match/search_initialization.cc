@@ -23,10 +23,11 @@ int Matcher::search_for_initialization(const map::Features& f1, const map::Featu
   std::vector<int> matched_distance(f2.size(), INT_MAX), matches21(f2.size(), -1);
   RotationHistogram hist(o_.histogram_bins);
   int n = 0;
+  std::vector<int> cand;
   for (int i1 = 0; i1 < f1.size(); ++i1) {
     const int level = f1.keys_un[i1].octave;
     if (level > 0) continue;  // ORB-SLAM2: the finest level only
-    const auto cand = f2.in_area(prev_matched[i1].x(), prev_matched[i1].y(), window, level, level);
+    f2.in_area(prev_matched[i1].x(), prev_matched[i1].y(), window, level, level, cand);
     int best = INT_MAX, second = INT_MAX, best_i2 = -1;
     for (int i2 : cand) {
       const int d = hamming(f1.descriptor(i1), f2.descriptor(i2));

@@ -26,14 +26,27 @@ struct Features {
   // Builds the grid; call once after keys_un is final.
   void build_grid();
   // Indices of keypoints within `radius` (a square window, as ORB-SLAM) of
-  // (x, y), on levels [min_level, max_level] (-1: any).
+  // (x, y), on levels [min_level, max_level] (-1: any); cell by cell, row
+  // major, ascending index within a cell.
   std::vector<int> in_area(double x, double y, double radius, int min_level = -1,
                            int max_level = -1) const;
+  // The same into `out` (cleared first), for callers that reuse one buffer
+  // over many searches.
+  void in_area(double x, double y, double radius, int min_level, int max_level, std::vector<int>& out) const;
 
  private:
   static constexpr int kGridCols = 64, kGridRows = 48;
+  // What a search tests of a keypoint, beside its index: the cells' keypoints
+  // stored together (cell by cell, ascending index), cell k's in
+  // [cell_start_[k], cell_start_[k + 1]). One allocation per frame instead of
+  // one per occupied cell, and a search reads contiguous memory.
+  struct GridItem {
+    float x, y;
+    int octave, index;
+  };
   double cell_inv_w_ = 0, cell_inv_h_ = 0;
-  std::vector<std::vector<int>> grid_;
+  std::vector<int> cell_start_;
+  std::vector<GridItem> cell_items_;
 };
 
 }  // namespace dynaorb::map
