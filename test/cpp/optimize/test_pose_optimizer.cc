@@ -164,10 +164,10 @@ TEST(PoseOptimizer, PointBehindCameraIsFiniteOutlier) {
 }
 
 TEST(PoseOptimizer, NonFiniteObservationsAreOutliersAndThePoseStaysFinite) {
-  // Every round is one residual block: a NaN in one observation makes the whole round's cost
-  // NaN, Ceres takes no step, and the classification must drop that observation so the next
-  // rounds solve without it. A NaN point is behind no camera: it must be left out from the
-  // first round.
+  // Every round is one residual block: a NaN in one observation would make the whole round's
+  // cost NaN, Ceres would take no step, and the classification at the unmoved pose would drop
+  // the good observations too. Non-finite observations and points must be left out from the
+  // first round on.
   Scene s = make_scene(9, 150, 0.0, 0.5, 0.5);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const double inf = std::numeric_limits<double>::infinity();
