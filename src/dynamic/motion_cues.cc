@@ -189,11 +189,19 @@ int lk_levels(const MotionCueOptions& o) { return std::max(o.lk_levels, 0); }
 
 // The LK pyramid of an image with its derivatives: what calcOpticalFlowPyrLK
 // builds from the image on every call, built once for the calls that share it.
-std::vector<cv::Mat> lk_pyramid(const cv::Mat& image, const MotionCueOptions& o) {
+// LK reads the derivatives of the image it tracks from only: the right image
+// of a stereo pair, tracked into and (with the depths' backward check) back
+// from, gets them only for that check (right_pyramid; the same tracks
+// either way, without a Scharr pass and its buffers per level when unused).
+std::vector<cv::Mat> lk_pyramid(const cv::Mat& image, const MotionCueOptions& o, bool with_derivatives = true) {
   std::vector<cv::Mat> pyramid;
   const int w = lk_window(o);
-  cv::buildOpticalFlowPyramid(image, pyramid, cv::Size(w, w), lk_levels(o), true);
+  cv::buildOpticalFlowPyramid(image, pyramid, cv::Size(w, w), lk_levels(o), with_derivatives);
   return pyramid;
+}
+
+std::vector<cv::Mat> right_pyramid(const cv::Mat& right, const MotionCueOptions& o) {
+  return lk_pyramid(right, o, o.stereo_depth_forward_backward_max > 0);
 }
 
 // Whether the cache holds the LK pyramid of `image` (the same buffer) built
@@ -454,7 +462,7 @@ void detect_corners_ahead(const FrameData& frame, const map::Calibration& calib,
     a.corners_ms = ms_since(t0);
     if (!right.empty() && !a.corners.empty()) {
       t0 = Clock::now();
-      a.right_depth = stereo_depths(left_pyramid.empty() ? lk_pyramid(grey, o) : left_pyramid, lk_pyramid(right, o),
+      a.right_depth = stereo_depths(left_pyramid.empty() ? lk_pyramid(grey, o) : left_pyramid, right_pyramid(right, o),
                                     a.corners, bf, o);
       a.stereo_ms = ms_since(t0);
     }
@@ -538,7 +546,7 @@ std::vector<TrackedPoint> track_points(const FrameData& prev, const FrameData& c
         if (cache) cache->ms["stereo_ahead"] = detected.stereo_ms;
       } else {
         t0 = Clock::now();
-        const std::vector<float> depth = stereo_depths(prev_pyramid, lk_pyramid(prev.right, o), kept_prev, calib.bf, o);
+        const std::vector<float> depth = stereo_depths(prev_pyramid, right_pyramid(prev.right, o), kept_prev, calib.bf, o);
         if (cache) cache->ms["stereo"] = ms_since(t0);
         for (size_t i = 0; i < out.size(); ++i) out[i].prev_depth = depth[i];
       }

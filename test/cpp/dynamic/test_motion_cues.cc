@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <opencv2/features2d.hpp>
+#include <opencv2/video/tracking.hpp>
 
 #include <algorithm>
 #include <functional>
@@ -257,6 +258,31 @@ TEST(MotionCues, StereoDepthBackwardCheckOnlyRemovesDepths) {
   }
   EXPECT_GT(with_depth_b, with_depth_a);
   EXPECT_LT(median(rel), 0.02);
+}
+
+// LK reads the derivatives of the image it tracks from only, so the right
+// image's pyramid is built without them where nothing is tracked back from it
+// (motion_cues.cc): the depths are the same with and without them in the
+// right pyramid, with and without the depths' backward check.
+TEST(MotionCues, StereoDepthsNeedNoDerivativesOfTheRightImage) {
+  auto calib = make_calibration(Sensor::kStereo);
+  Pair p = render_pair(*calib, Sensor::kStereo);
+  MotionCueOptions o;
+  const std::vector<cv::Point2f> corners = detect_corners(p.prev.grey, o);
+  ASSERT_GT(corners.size(), 300u);
+  const cv::Size window(o.lk_window, o.lk_window);
+  std::vector<cv::Mat> left, right_with, right_without;
+  cv::buildOpticalFlowPyramid(p.prev.grey, left, window, o.lk_levels, true);
+  cv::buildOpticalFlowPyramid(p.prev.right, right_with, window, o.lk_levels, true);
+  cv::buildOpticalFlowPyramid(p.prev.right, right_without, window, o.lk_levels, false);
+  for (double fb_max : {1.0, 0.0}) {
+    o.stereo_depth_forward_backward_max = fb_max;
+    const std::vector<float> a = stereo_depths(left, right_with, corners, calib->bf, o);
+    const std::vector<float> b = stereo_depths(left, right_without, corners, calib->bf, o);
+    ASSERT_EQ(a.size(), corners.size());
+    EXPECT_EQ(a, b) << "backward check " << fb_max;
+    EXPECT_GT(std::count_if(a.begin(), a.end(), [](float z) { return z > 0; }), 0.7 * corners.size());
+  }
 }
 
 // The cache only saves work: the previous image's pyramid kept from the last
