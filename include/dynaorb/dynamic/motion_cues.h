@@ -157,8 +157,8 @@ struct MotionCueCache {
   std::map<std::string, double> ms;
 };
 
-// The corners track_points tracks from an image: goodFeaturesToTrack (or
-// FAST, MotionCueOptions::detector) inside the border (inside `candidates`
+// The corners track_points tracks from an image: goodFeaturesToTrack's
+// (harris_corners with use_harris; or FAST, MotionCueOptions::detector) inside the border (inside `candidates`
 // a detection of their own when candidate_quality_level, or
 // candidate_fast_threshold, is set below the image's), at most max_background_corners of them outside
 // `candidates` (CV_8UC1 of the image's size; else all count as outside) and
