@@ -15,8 +15,8 @@ namespace dynaorb::dynamic {
 // 3x3 Sobel gradients' products summed over a block_size box (A = sum dx^2,
 // B = sum dx dy, C = sum dy^2; BORDER_REFLECT_101); the pixels off the
 // image's outer ring where `mask` is set (empty: everywhere) whose response
-// is above quality_level times the largest inside the mask and the largest
-// of their 3x3 neighbourhood; strongest first (equal ones: the later in
+// is above quality_level times the largest inside the mask and is the
+// largest in their 3x3 neighbourhood; strongest first (equal ones: the later in
 // raster order first); each kept unless a kept one lies nearer than
 // min_distance px; at most max_corners (0: all).
 //
@@ -30,9 +30,10 @@ namespace dynaorb::dynamic {
 // about a third of OpenCV's time; its buffers (24 bytes a pixel: 7.4 MB for
 // 640x480) are kept per thread between calls.
 //
-// The detection rules need a 3x3 image and a box that fits the image; for
-// smaller images, block_size above 45 (where the sums could overflow) or
-// below 1, it calls cv::goodFeaturesToTrack itself. Throws cv::Exception on
+// For a submatrix (OpenCV's filters read its parent image past its edge,
+// these reflect at it), images under 3x3, a box larger than the image, and
+// block_size above 45 (where the sums could overflow) or below 1, it calls
+// cv::goodFeaturesToTrack itself. Throws cv::Exception on
 // what goodFeaturesToTrack refuses (not 8-bit single channel, a mask of
 // another size or type, quality_level <= 0, min_distance < 0,
 // max_corners < 0).
