@@ -72,15 +72,15 @@ void box_along_row(const int32_t* __restrict in, int W, int block, int lead, int
     const int32_t* __restrict src = in + i - lead;
     for (int x = first; x <= last; ++x) out[x] += src[x];
   }
-  for (int x = 0; x < W; ++x) {
-    if (x >= first && x <= last) {
-      x = last;
-      continue;
+  const auto reflected = [&](int from, int to) {  // the columns whose box leaves the row
+    for (int x = from; x < to; ++x) {
+      int32_t s = 0;
+      for (int i = 0; i < block; ++i) s += in[reflect101(x + i - lead, W)];
+      out[x] = s;
     }
-    int32_t s = 0;
-    for (int i = 0; i < block; ++i) s += in[reflect101(x + i - lead, W)];
-    out[x] = s;
-  }
+  };
+  reflected(0, first);
+  reflected(last + 1, W);
 }
 
 // out[x] = sum of rows[j][x] over the rows.
@@ -235,8 +235,8 @@ std::vector<cv::Point2f> harris_corners(const cv::Mat& grey, int max_corners, do
         continue;
       }
       if (!(r[x] > threshold) || (m && !m[x])) continue;
-      const double v = kept(r[x]);
-      if (v == 0) continue;
+      const double v = r[x];
+      if (v == 0) continue;  // goodFeaturesToTrack's val != 0 (a threshold below 0)
       bool peak = true;
       for (int dy = -1; dy <= 1 && peak; ++dy) {
         const double* q = r + static_cast<ptrdiff_t>(dy) * W;

@@ -38,29 +38,35 @@ std::vector<cv::Point2f> opencv_corners(const cv::Mat& grey, const cv::Mat& mask
   return out;
 }
 
+struct Compared {
+  int corners = 0;  // OpenCV's
+  int swaps = 0;
+};
+
 // The same corners in the same order, but where OpenCV's own (float)
 // responses of two neighbours in its list agree to 1e-6 and ours ordered
-// them the other way: such a pair may be swapped. Returns the swaps.
-int expect_same_corners(const cv::Mat& grey, const cv::Mat& mask, const Options& o, const std::string& what) {
+// them the other way: such a pair may be swapped.
+Compared expect_same_corners(const cv::Mat& grey, const cv::Mat& mask, const Options& o, const std::string& what) {
   const std::vector<cv::Point2f> theirs = opencv_corners(grey, mask, o);
   const std::vector<cv::Point2f> ours = harris_corners(grey, o.max_corners, o.quality, o.min_distance, mask, o.block, o.k);
+  Compared c;
+  c.corners = static_cast<int>(theirs.size());
   EXPECT_EQ(ours.size(), theirs.size()) << what;
-  if (ours.size() != theirs.size()) return 0;
+  if (ours.size() != theirs.size()) return c;
   cv::Mat response;
   cv::cornerHarris(grey, response, o.block, 3, o.k);
   const auto at = [&](const cv::Point2f& p) { return response.at<float>(cvRound(p.y), cvRound(p.x)); };
-  int swaps = 0;
   for (size_t i = 0; i < ours.size(); ++i) {
     if (ours[i] == theirs[i]) continue;
     const bool swapped = i + 1 < ours.size() && ours[i] == theirs[i + 1] && ours[i + 1] == theirs[i] &&
                          std::abs(at(theirs[i]) - at(theirs[i + 1])) <= 1e-6 * std::abs(at(theirs[i]));
     EXPECT_TRUE(swapped) << what << ": corner " << i << " is (" << ours[i].x << ", " << ours[i].y
                          << "), OpenCV's (" << theirs[i].x << ", " << theirs[i].y << ")";
-    if (!swapped) return swaps;
-    ++swaps;
+    if (!swapped) return c;
+    ++c.swaps;
     ++i;
   }
-  return swaps;
+  return c;
 }
 
 cv::Mat border_mask(const cv::Size& size, int border) {
@@ -100,8 +106,9 @@ TEST(HarrisCorners, SameAsGoodFeaturesToTrackOnRenderedRooms) {
                                Options{1000, 0.01, 8, 4, 0.04}, Options{200, 0.05, 12, 7, 0.04}}) {
         const std::string what = "frame " + std::to_string(f) + ", " + mask_name + ", block " +
                                  std::to_string(o.block) + ", distance " + std::to_string(o.min_distance);
-        swaps += expect_same_corners(grey, mask, o, what);
-        corners += static_cast<int>(opencv_corners(grey, mask, o).size());
+        const Compared c = expect_same_corners(grey, mask, o, what);
+        swaps += c.swaps;
+        corners += c.corners;
       }
   }
   EXPECT_GT(corners, 10000);
@@ -128,8 +135,9 @@ TEST(HarrisCorners, SameAsGoodFeaturesToTrackOnRealFrames) {
     for (size_t i = 0; i < files.size(); i += 10) {
       const cv::Mat grey = cv::imread(files[i].string(), cv::IMREAD_GRAYSCALE);
       ASSERT_FALSE(grey.empty()) << files[i];
-      swaps += expect_same_corners(grey, border_mask(grey.size(), 10), Options{}, files[i].string());
-      corners += static_cast<int>(opencv_corners(grey, border_mask(grey.size(), 10), Options{}).size());
+      const Compared c = expect_same_corners(grey, border_mask(grey.size(), 10), Options{}, files[i].string());
+      swaps += c.swaps;
+      corners += c.corners;
       ++frames;
     }
   }
