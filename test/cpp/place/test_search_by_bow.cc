@@ -4,8 +4,10 @@
 // and the projection search from a keyframe adds matches at that pose.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <vector>
 #include <opencv2/calib3d.hpp>
 
 #include "dynaorb/match/matcher.h"
@@ -154,7 +156,22 @@ TEST(PnpRansac, BagOfWordsMatchesGiveTheGroundTruthPose) {
   const PnpRansacResult r = pnp_ransac(m, {c.fx, c.fy, c.cx, c.cy});
   const double ms = ms_since(t0);
   ASSERT_TRUE(r.ok);
-  const auto [pnp_t, pnp_r] = pose_error(r.T_cw, 3);
+  // The RANSAC pose's error over nine seeds' draws (seed 0's, r, goes on):
+  // one draw's is anywhere in 0.02-0.3 m here (30 seeds measured), their
+  // median about 0.14 m.
+  std::vector<double> ts, rs;
+  for (unsigned seed = 0; seed < 9; ++seed) {
+    PnpRansacOptions po;
+    po.seed = seed;
+    const PnpRansacResult rs_seed = pnp_ransac(m, {c.fx, c.fy, c.cx, c.cy}, po);
+    ASSERT_TRUE(rs_seed.ok);
+    const auto [t_err, r_err] = pose_error(rs_seed.T_cw, 3);
+    ts.push_back(t_err);
+    rs.push_back(r_err);
+  }
+  std::nth_element(ts.begin(), ts.begin() + 4, ts.end());
+  std::nth_element(rs.begin(), rs.begin() + 4, rs.end());
+  const double pnp_t = ts[4], pnp_r = rs[4];
   for (size_t k = 0; k < slot.size(); ++k)
     if (!r.inlier[k]) f.points[slot[k]].reset();
   f.set_pose(r.T_cw);
@@ -166,7 +183,7 @@ TEST(PnpRansac, BagOfWordsMatchesGiveTheGroundTruthPose) {
   const int final_inliers = optimize(f);
   const auto [final_t, final_r] = pose_error(f.T_cw, 3);
   std::printf("[ measured ] KITTI 06 frame 3 vs keyframe 0: %d matches; PnP %d inliers, %d iterations, %.2f ms, "
-              "error %.3f m / %.3f deg; BA %d inliers, %.3f m / %.3f deg; projection search +%d, BA %d inliers, "
+              "median error of 9 seeds %.3f m / %.3f deg; BA %d inliers, %.3f m / %.3f deg; projection search +%d, BA %d inliers, "
               "%.3f m / %.3f deg\n",
               n, r.inliers, r.iterations, ms, pnp_t, pnp_r, ba_inliers, ba_t, ba_r, extra, final_inliers, final_t,
               final_r);
