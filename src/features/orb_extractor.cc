@@ -263,7 +263,7 @@ OrbDetection OrbExtractor::start(const cv::Mat& image) const {
   d.excluded_keypoints.assign(L, 0);
   d.pyramid[0] = image.clone();
   for (int i = 1; i < L; ++i) {
-    const cv::Size sz = pyramid_level_size(image.size(), inv_scale_[i]);
+    const cv::Size sz(cvRound(image.cols * inv_scale_[i]), cvRound(image.rows * inv_scale_[i]));
     if (sz.width < 1 || sz.height < 1) {
       d.pyramid[i] = cv::Mat(std::max(sz.height, 1), std::max(sz.width, 1), CV_8UC1, cv::Scalar(0));
       continue;
@@ -341,19 +341,15 @@ void OrbExtractor::describe_level(OrbDetection& d, int level, const cv::Mat& exc
   // excluded pixel within exclude_margin_ level pixels (set_exclude_margin).
   const float sc = scale_[level];
   if (!exclude.empty()) {
-    const cv::Size image = d.pyramid[0].size(), level_size = img.size();
     auto at = [&](const cv::Mat& m, const cv::KeyPoint& k) {
-      const cv::Point2f p = level_to_image(k.pt, image, level_size);
-      const int u = std::clamp(cvRound(p.x), 0, m.cols - 1);
-      const int v = std::clamp(cvRound(p.y), 0, m.rows - 1);
+      const int u = std::clamp(cvRound(k.pt.x * sc), 0, m.cols - 1);
+      const int v = std::clamp(cvRound(k.pt.y * sc), 0, m.rows - 1);
       return m.at<uchar>(v, u) != 0;
     };
     const int r = exclude_margin_ > 0 ? static_cast<int>(std::ceil(exclude_margin_ * sc - 1e-4f)) : 0;
     // With a margin the square holds the corner's own pixel too.
     auto excluded = [&](const cv::KeyPoint& k) {
-      if (r == 0) return at(exclude, k);
-      const cv::Point2f p = level_to_image(k.pt, image, level_size);
-      return near_excluded(exclude, cvRound(p.x), cvRound(p.y), r);
+      return r == 0 ? at(exclude, k) : near_excluded(exclude, cvRound(k.pt.x * sc), cvRound(k.pt.y * sc), r);
     };
     if (count_region) {
       int dropped = 0;
@@ -415,12 +411,12 @@ void OrbExtractor::finish(OrbDetection&& d, std::vector<cv::KeyPoint>& keypoints
   for (int level = 0; level < L; ++level) {
     const std::vector<cv::KeyPoint>& kps = d.kept[level];
     if (kps.empty()) continue;
-    const cv::Size image = d.pyramid[0].size(), level_size = d.pyramid[level].size();
+    const float sc = scale_[level];
     d.descriptors[level].copyTo(descriptors.rowRange(row, row + static_cast<int>(kps.size())));
     row += static_cast<int>(kps.size());
     for (const cv::KeyPoint& k : kps) {
       cv::KeyPoint k0 = k;
-      k0.pt = level_to_image(k.pt, image, level_size);
+      k0.pt *= sc;
       keypoints.push_back(k0);
     }
   }

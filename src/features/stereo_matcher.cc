@@ -11,7 +11,6 @@
 //  4. matches whose SAD exceeds 1.5 * 1.4 * median are dropped as outliers.
 #include "dynaorb/features/stereo_matcher.h"
 
-#include "dynaorb/features/orb_extractor.h"
 #include "dynaorb/match/hamming.h"
 
 #include <algorithm>
@@ -143,13 +142,11 @@ StereoMatches match_stereo(const std::vector<cv::KeyPoint>& left, const cv::Mat&
     if (best_ir < 0 || best_dist >= th_desc) continue;
 
     // 3. SAD refinement at the left keypoint's level (both images).
+    const float sc = scale_factors[level], inv_sc = 1.0f / sc;
     const cv::Mat& il_img = left_pyramid[level];
     const cv::Mat& ir_img = right_pyramid[level];
-    const cv::Size image = left_pyramid[0].size(), level_size = il_img.size();
-    const float sc = static_cast<float>(image.width) / static_cast<float>(level_size.width);
-    const cv::Point2f pl_level = image_to_level(kl.pt, image, level_size);
-    const int su_l = cvRound(pl_level.x), sv = cvRound(pl_level.y);
-    const int su_r0 = cvRound(image_to_level(right[best_ir].pt, image, level_size).x);
+    const int su_l = cvRound(ul * inv_sc), sv = cvRound(vl * inv_sc);
+    const int su_r0 = cvRound(right[best_ir].pt.x * inv_sc);
     // Skip windows that leave either image.
     if (sv - w < 0 || sv + w >= il_img.rows || sv + w >= ir_img.rows) continue;
     if (su_l - w < 0 || su_l + w >= il_img.cols) continue;
@@ -185,9 +182,7 @@ StereoMatches match_stereo(const std::vector<cv::KeyPoint>& left, const cv::Mat&
     }
     if (delta < -1.f || delta > 1.f) continue;
 
-    // Disparity in level pixels times the level's horizontal scale
-    // (level_to_image), from the left keypoint's own position.
-    float u_r = ul - sc * (static_cast<float>(su_l - su_r0 - best_inc) - delta);
+    float u_r = sc * (static_cast<float>(su_r0 + best_inc) + delta);
     float disparity = ul - u_r;
     if (disparity >= min_d && disparity < max_d) {
       if (disparity <= 0) {

@@ -11,7 +11,6 @@
 #include <utility>
 #include <vector>
 
-#include "dynaorb/features/orb_extractor.h"
 #include "dynaorb/io/errors.h"
 #include "dynaorb/map/bag_of_words.h"
 #include "dynaorb/place/keyframe_database.h"
@@ -21,29 +20,6 @@
 namespace dynaorb::map {
 
 using namespace file;  // NOLINT: the format helpers of map_file_format.h
-
-namespace {
-
-// Format versions 1-2 hold the keypoints where the extractor put them before
-// version 3: the level pixel times s^level. They move to where it puts them
-// now (features::level_to_image), and the undistorted keypoint and the right
-// coordinate move with them (the same shift: under 3 px, over which the lens
-// distortion's change is negligible; the depth is the disparity's and stays).
-void move_old_keypoints(Features& f, const Calibration& c) {
-  const cv::Size image(c.width, c.height);
-  for (std::size_t i = 0; i < f.keys.size(); ++i) {
-    const int level = f.keys[i].octave;
-    const float inv_scale = c.scale.inv_scale[static_cast<std::size_t>(level)];
-    const cv::Point2f old = f.keys[i].pt;
-    const cv::Point2f shift =
-        features::level_to_image(old * inv_scale, image, features::pyramid_level_size(image, inv_scale)) - old;
-    f.keys[i].pt += shift;
-    f.keys_un[i].pt += shift;
-    if (f.u_right[i] >= 0) f.u_right[i] += shift.x;
-  }
-}
-
-}  // namespace
 
 // Restores what only Map, KeyFrame and MapPoint may set (friend of all three).
 class MapIo {
@@ -138,7 +114,6 @@ class MapIo {
       if (f->u_right.size() != n || f->depth.size() != n)
         r.fail("corrupt map file: keyframe " + std::to_string(id) + " has " + std::to_string(n) + " keypoints but " +
                std::to_string(f->u_right.size()) + " u_right and " + std::to_string(f->depth.size()) + " depths");
-      if (version < 3) move_old_keypoints(*f, *calib);
       f->build_grid();
       if (id < 0 || id >= next_kf || kfs.count(id))
         r.fail("corrupt map file: keyframe id " + std::to_string(id) + " repeated or out of range");

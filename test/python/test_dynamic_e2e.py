@@ -181,10 +181,7 @@ def test_full_within_1_2x_of_static_and_off_3x_worse(tmp_path, synth_seeds, sens
         off_ratio.append(float("inf") if lost else off_ate / s)
     full_median, off_median = float(np.median(full_ratio)), float(np.median(off_ratio))
     print(f"{sensor}: full/static median {full_median:.2f}, off/static median {off_median:.2f}")
-    # Measured, full / static for seeds 0 / 1 / 2 (median); static ATE 2.1-6.1 mm:
-    #   since keypoints sit at their level pixels' centres (features::
-    #   level_to_image): RGB-D 1.15 / 0.96 / 1.10 (1.10), stereo 1.12 / 1.11
-    #   / 1.38 (1.12), mono 1.13 / 0.99 / 0.96 (0.99); before it:
+    # Measured, full / static for seeds 0 / 1 / 2 (median); static ATE 2.1-5.5 mm:
     #   RGB-D  1.11 / 1.07 / 1.21 (1.11) with the first frame's candidates
     #          dropped (Dynamic.semantic.drop_unchecked_rgbd); 1.05 / 1.28 /
     #          1.28 (1.28) before, 1.22 before the candidates' own corner
@@ -226,9 +223,7 @@ def test_li_without_semantic_input_within_1_5x(tmp_path, synth_seeds):
     # 0.898 / 0.984. 0.89: room for another CPU's rounding in SGBM and LK.
     assert all(p >= 0.89 and r >= 0.9 for p, r in scores), scores
     assert float(np.median([p for p, _ in scores])) >= 0.9
-    # Measured 1.39 / 1.28 / 1.20 (median 1.28) since keypoints sit at their
-    # level pixels' centres (precision / recall 0.905 / 0.952, 0.954 / 0.979,
-    # 0.927 / 0.977); before it 1.73 / 1.28 / 1.05 (median 1.28; seeds 0-11 median 1.32),
+    # Measured 1.73 / 1.28 / 1.05 (median 1.28; seeds 0-11 median 1.32),
     # 2.01 / 1.25 / 1.24 before f_exclude_previous_dynamic (1.25); 2.30
     # / 1.42 / 1.14 with foreground_band_px 15 (seeds 0-11 1.34); 2.20 /
     # 1.40 / 1.17 with whole rectangles (no foreground_only), 1.96 / 1.39 /

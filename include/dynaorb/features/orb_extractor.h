@@ -47,9 +47,8 @@ class OrbExtractor {
   // image: CV_8UC1. exclude: empty or CV_8UC1 of the image size; keypoints at
   // non-zero pixels (or near them: set_exclude_margin) are dropped before the
   // quadtree distribution, so the feature budget goes to the rest of the
-  // image. Keypoints come in level-0 pixel coordinates (level_to_image of
-  // their level pixel) with octave = pyramid level, angle in degrees, size =
-  // patch diameter at that level.
+  // image. Keypoints come in level-0 pixel coordinates with octave = pyramid
+  // level, angle in degrees, size = patch diameter at that level.
   // descriptors: N x 32 CV_8U. count (optional): what the exclusion cost
   // inside count->region.
   void extract(const cv::Mat& image, const cv::Mat& exclude, std::vector<cv::KeyPoint>& keypoints,
@@ -114,28 +113,5 @@ class OrbExtractor {
   int exclude_margin_ = 0;
   std::vector<cv::Mat> pyramid_;
 };
-
-// The size of a pyramid level: the image's times 1/s^level, rounded
-// (inv_scale: OrbExtractor::inv_scale_factors()[level]).
-inline cv::Size pyramid_level_size(const cv::Size& image, float inv_scale) {
-  return {cvRound(image.width * inv_scale), cvRound(image.height * inv_scale)};
-}
-
-// Where a pixel of a pyramid level lies in level 0 (image pixels) and back.
-// cv::resize maps pixel centres onto pixel centres over the whole image, so
-// with level i's size W_i x H_i, x_0 = (x_i + 0.5) W_0 / W_i - 0.5 (the
-// same in y with the heights), whether the level was resized from level 0
-// or from level i-1. Not x_i * s^i: that puts a level-7 keypoint up to 1.3
-// px (half a level pixel, 0.5 (s^i - 1)) off, and W_0 / W_i differs from
-// s^i by the rounding of the level's size (640 / 179 = 3.575 against 1.2^7
-// = 3.583: another 1.4 px at the right border).
-inline cv::Point2f level_to_image(const cv::Point2f& p, const cv::Size& image, const cv::Size& level) {
-  return {(p.x + 0.5f) * static_cast<float>(image.width) / static_cast<float>(level.width) - 0.5f,
-          (p.y + 0.5f) * static_cast<float>(image.height) / static_cast<float>(level.height) - 0.5f};
-}
-inline cv::Point2f image_to_level(const cv::Point2f& p, const cv::Size& image, const cv::Size& level) {
-  return {(p.x + 0.5f) * static_cast<float>(level.width) / static_cast<float>(image.width) - 0.5f,
-          (p.y + 0.5f) * static_cast<float>(level.height) / static_cast<float>(image.height) - 0.5f};
-}
 
 }  // namespace dynaorb::features

@@ -18,10 +18,7 @@
 //     observations as (keyframe id, keypoint index)),
 //     from version 2: the loop closer's loop edges, as pairs of keyframe ids
 //     (the essential graph's loop constraints; version 1 files have none and
-//     still load);
-//     from version 3, the keypoints of pyramid level l sit where
-//     features::level_to_image puts the level's pixel; versions 1-2 hold
-//     them at the level pixel times s^l, and loading moves them.
+//     still load).
 // Only what is in the map is written: culled keyframes and erased or fused
 // points are gone. The covisibility graph is not stored: loading rebuilds it
 // from the observations (UpdateConnections on every keyframe, by id), then
@@ -51,7 +48,7 @@ class Vocabulary;
 namespace dynaorb::map {
 
 inline constexpr char kMapMagic[8] = {'D', 'Y', 'N', 'A', 'O', 'M', 'A', 'P'};
-inline constexpr std::uint32_t kMapFormatVersion = 3;        // what save_map writes
+inline constexpr std::uint32_t kMapFormatVersion = 2;        // what save_map writes
 inline constexpr std::uint32_t kMapFormatOldestVersion = 1;  // the oldest load_map reads
 
 // Keyframe id -> the keyframes a loop closure joined it to (both directions).

@@ -100,11 +100,10 @@ TEST(OrbExtractor, ReturnsTheBudgetWithValidKeypoints) {
       EXPECT_LT(k.angle, 360.f);
       EXPECT_GT(k.response, 0.f);
       // At least EDGE_THRESHOLD (19) px from the border of its level.
-      const cv::Point2f p = features::image_to_level(k.pt, c.img.size(), ex.pyramid()[k.octave].size());
-      EXPECT_GE(p.x, 19.f - 1e-3);
-      EXPECT_GE(p.y, 19.f - 1e-3);
-      EXPECT_LE(p.x, ex.pyramid()[k.octave].cols - 19.f + 1e-3);
-      EXPECT_LE(p.y, ex.pyramid()[k.octave].rows - 19.f + 1e-3);
+      EXPECT_GE(k.pt.x / s, 19.f - 1e-3);
+      EXPECT_GE(k.pt.y / s, 19.f - 1e-3);
+      EXPECT_LE(k.pt.x / s, ex.pyramid()[k.octave].cols - 19.f + 1e-3);
+      EXPECT_LE(k.pt.y / s, ex.pyramid()[k.octave].rows - 19.f + 1e-3);
     }
     // The budget of a level is geometric in 1/s: level 0 gets N(1-1/s)/(1-(1/s)^8).
     const double f = 1 / 1.2;
@@ -119,60 +118,6 @@ TEST(OrbExtractor, ReturnsTheBudgetWithValidKeypoints) {
 // Measured: every textured cell of an 8x6 grid is covered on both images; on
 // 16x12, 90% (EuRoC) and 87% (KITTI) of the textured cells against 23% and 33%
 // for cv::ORB with the same budget.
-// A keypoint sits where its level pixel's centre lies in the image. The
-// pyramid's bilinear resizing keeps a linear image linear, so resizing the
-// images x and y (floats, the pyramid's sizes, level from level) puts in
-// each level pixel the image position level_to_image gives it; and every
-// keypoint is a level pixel (image_to_level gives an integer). ORB-SLAM2's
-// level pixel times s^level is up to 1.3 px from that on the top levels of a
-// KITTI image (half a level pixel, and the level sizes' rounding).
-TEST(OrbExtractor, KeypointsSitAtTheirLevelPixelsCentres) {
-  DYNAORB_REQUIRE_SHARED();
-  const cv::Mat img = kitti_image();
-  ASSERT_FALSE(img.empty());
-  OrbExtractor ex(settings(2000));
-  std::vector<cv::KeyPoint> kps;
-  cv::Mat desc;
-  ex.extract(img, cv::Mat(), kps, desc);
-  const std::vector<cv::Mat>& pyr = ex.pyramid();
-  cv::Mat x(img.size(), CV_32F), y(img.size(), CV_32F);
-  for (int r = 0; r < img.rows; ++r)
-    for (int c = 0; c < img.cols; ++c) {
-      x.at<float>(r, c) = static_cast<float>(c);
-      y.at<float>(r, c) = static_cast<float>(r);
-    }
-  std::vector<cv::Mat> xs{x}, ys{y};
-  for (int i = 1; i < ex.n_levels(); ++i) {
-    ASSERT_EQ(pyr[i].size(), features::pyramid_level_size(img.size(), ex.inv_scale_factors()[i]));
-    xs.emplace_back();
-    ys.emplace_back();
-    cv::resize(xs[i - 1], xs[i], pyr[i].size(), 0, 0, cv::INTER_LINEAR);
-    cv::resize(ys[i - 1], ys[i], pyr[i].size(), 0, 0, cv::INTER_LINEAR);
-  }
-  for (int i = 0; i < ex.n_levels(); ++i)
-    for (int r = 2; r + 2 < pyr[i].rows; r += 7)  // clear of the border's clamping
-      for (int c = 2; c + 2 < pyr[i].cols; c += 7) {
-        const cv::Point2f p = features::level_to_image(cv::Point2f(c, r), img.size(), pyr[i].size());
-        ASSERT_NEAR(p.x, xs[i].at<float>(r, c), 2e-3) << "level " << i << " pixel " << c << "," << r;
-        ASSERT_NEAR(p.y, ys[i].at<float>(r, c), 2e-3) << "level " << i << " pixel " << c << "," << r;
-        const cv::Point2f back = features::image_to_level(p, img.size(), pyr[i].size());
-        ASSERT_NEAR(back.x, c, 1e-3);
-        ASSERT_NEAR(back.y, r, 1e-3);
-      }
-  std::vector<int> per_level(ex.n_levels(), 0);
-  double worst_old = 0;  // ORB-SLAM2's placement against this one
-  for (const cv::KeyPoint& k : kps) {
-    const cv::Point2f p = features::image_to_level(k.pt, img.size(), pyr[k.octave].size());
-    ASSERT_NEAR(p.x, std::round(p.x), 1e-3) << "level " << k.octave;
-    ASSERT_NEAR(p.y, std::round(p.y), 1e-3) << "level " << k.octave;
-    const cv::Point2f orb_slam2 = p * ex.scale_factors()[k.octave];
-    worst_old = std::max(worst_old, static_cast<double>(std::hypot(orb_slam2.x - k.pt.x, orb_slam2.y - k.pt.y)));
-    ++per_level[k.octave];
-  }
-  for (int i = 0; i < ex.n_levels(); ++i) EXPECT_GT(per_level[i], 0) << "level " << i;
-  EXPECT_GT(worst_old, 1.0);
-}
-
 TEST(OrbExtractor, SpreadsKeypointsBetterThanPlainOrb) {
   DYNAORB_REQUIRE_SHARED();
   for (const cv::Mat& img : {euroc_image(), kitti_image()}) {

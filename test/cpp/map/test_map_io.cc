@@ -9,7 +9,6 @@
 #include <iterator>
 
 #include "../place/place_test_util.h"
-#include "dynaorb/features/orb_extractor.h"
 #include "dynaorb/io/errors.h"
 #include "dynaorb/map/map_io.h"
 #include "dynaorb/system.h"
@@ -205,8 +204,8 @@ TEST(MapIo, BadFilesAreRefusedWithTheFileNamed) {
   expect_refused("magic.map", s, "not a dynaorb map file");
   expect_refused("text.map", "hello, this is not a map at all, not even close", "not a dynaorb map file");
   s = bytes;
-  s[8] = 4;
-  expect_refused("version.map", s, "format version 4");
+  s[8] = 3;
+  expect_refused("version.map", s, "format version 3");
   s[8] = 0;
   expect_refused("version0.map", s, "format version 0");
   expect_refused("header.map", bytes.substr(0, 15), "truncated");
@@ -302,61 +301,6 @@ TEST(MapIo, LoopEdgesAreKeptAndVersionOneFilesStillLoad) {
 
 // Through the System: KITTI 06 mapped, saved, loaded by another System (the
 // same file again on saving), tracked in localisation only.
-// Versions 1-2 hold keypoints at the level pixel times s^level (the
-// extractor's placement before version 3); loading moves them, their
-// undistorted positions and right coordinates to features::level_to_image's.
-// A keyframe written that old way loads as the extractor's own.
-TEST(MapIo, VersionTwoKeypointsMoveToTheExtractorsPlacement) {
-  REQUIRE_PLACE_DATA();
-  TestMap t;
-  ScratchDir dir;
-  std::lock_guard<std::mutex> lk(t.map.mutex());
-  const std::shared_ptr<KeyFrame> kf = t.map.keyframes().front();
-  const map::Features& now = kf->f();
-  auto old = std::make_shared<map::Features>(now);
-  const cv::Size image(t.calib->width, t.calib->height);
-  int moved = 0;
-  for (std::size_t i = 0; i < old->keys.size(); ++i) {
-    const int level = old->keys[i].octave;
-    const cv::Size level_size = features::pyramid_level_size(image, t.calib->scale.inv_scale[level]);
-    const cv::Point2f level_px = features::image_to_level(now.keys[i].pt, image, level_size);
-    ASSERT_NEAR(level_px.x, std::round(level_px.x), 1e-3);  // the extractor's keypoints are level pixels
-    ASSERT_NEAR(level_px.y, std::round(level_px.y), 1e-3);
-    const cv::Point2f shift = level_px * t.calib->scale.scale[level] - now.keys[i].pt;
-    old->keys[i].pt += shift;
-    old->keys_un[i].pt += shift;
-    if (old->u_right[i] >= 0) old->u_right[i] += shift.x;
-    moved += std::hypot(shift.x, shift.y) > 0.5;
-  }
-  EXPECT_GT(moved, 100);  // the upper levels' keypoints are that far off
-  map::Map old_map;
-  {
-    std::lock_guard<std::mutex> l(old_map.mutex());
-    old_map.add_keyframe(std::make_shared<KeyFrame>(old_map.new_keyframe_id(), kf->frame_id, kf->stamp, old,
-                                                    kf->T_cw()));
-  }
-  const fs::path file = dir.path() / "v2.map";
-  map::save_map(file.string(), old_map, *t.calib, Sensor::kStereo);
-  std::string v2 = read_bytes(file);
-  const std::uint32_t two = 2;
-  std::memcpy(&v2[8], &two, 4);
-  write_bytes(file, v2);  // the version is in the header, outside the checksum
-  map::Map loaded;
-  std::lock_guard<std::mutex> l(loaded.mutex());
-  map::load_map(file.string(), loaded, t.calib, Sensor::kStereo);
-  ASSERT_EQ(loaded.keyframe_count(), 1u);
-  const map::Features& back = loaded.keyframes().front()->f();
-  ASSERT_EQ(back.keys.size(), now.keys.size());
-  for (std::size_t i = 0; i < now.keys.size(); ++i) {
-    EXPECT_NEAR(back.keys[i].pt.x, now.keys[i].pt.x, 1e-3);
-    EXPECT_NEAR(back.keys[i].pt.y, now.keys[i].pt.y, 1e-3);
-    EXPECT_NEAR(back.keys_un[i].pt.x, now.keys_un[i].pt.x, 1e-3);
-    EXPECT_NEAR(back.keys_un[i].pt.y, now.keys_un[i].pt.y, 1e-3);
-    EXPECT_NEAR(back.u_right[i], now.u_right[i], 1e-3);
-    EXPECT_EQ(back.depth[i], now.depth[i]);
-  }
-}
-
 TEST(MapIo, SystemSavesLoadsAndLocalises) {
   REQUIRE_PLACE_DATA();
   const fs::path kitti = shared_data() / "kitti/sequences/06";
