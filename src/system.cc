@@ -493,7 +493,8 @@ struct System::Impl {
   // the frame keeps the pose it has.
   std::optional<Eigen::Isometry3d> refine(const Eigen::Isometry3d& T_cw,
                                           const std::vector<optimize::PoseObservation>& obs) const {
-    return tracking::refine_pose(refine_K, T_cw, obs, options.tracker.refine_min_points, options.tracker.refine_rounds);
+    return tracking::refine_pose(refine_K, T_cw, obs, options.tracker.refine_min_points, options.tracker.refine_rounds,
+                                 options.tracker.pose_final_huber_for(sensor));
   }
 
   static void release_observations(FrameRecord& r) { std::vector<tracking::FrameObservation>().swap(r.obs); }

@@ -9,7 +9,9 @@
 // Robust kernel: ORB-SLAM2 drops the Huber kernel in the classification loop that follows the
 // optimisation of round index 2, so with its 4 rounds Huber is used in rounds 0, 1, 2 and the
 // final round 3 is plain least squares on the inliers. We follow that code (see
-// robust_in_round); for other round counts only the last round runs without Huber.
+// robust_in_round); for other round counts only the last round runs without Huber. With
+// options.final_huber > 0 the last round keeps a Huber kernel of that many standard deviations
+// (TrackerOptions::pose_final_huber holds why tracking sets one).
 //
 // Differences from ORB-SLAM2, on purpose:
 //  - each round continues from the previous round's estimate (ORB-SLAM2 restarts every round
@@ -121,10 +123,12 @@ Eigen::Matrix3d so3_left_jacobian(const Eigen::Vector3d& w) {
 // dXc/dw = -[Exp(w) Y]x J_l(w), dXc/dv = I.
 class PoseRoundCost final : public ceres::CostFunction {
  public:
+  // Huber on every observation with threshold delta2_mono / delta2_stereo (squared standard
+  // deviations) when both are > 0; plain least squares otherwise.
   PoseRoundCost(const Intrinsics& K, const std::vector<PoseObservation>& observations,
-                const std::vector<int>& active, bool robust, const PoseOptimizerOptions& options,
+                const std::vector<int>& active, double delta2_mono, double delta2_stereo,
                 const double* pose0)
-      : K_(K), robust_(robust), chi2_mono_(options.chi2_mono), chi2_stereo_(options.chi2_stereo) {
+      : K_(K), robust_(delta2_mono > 0 && delta2_stereo > 0), delta2_mono_(delta2_mono), delta2_stereo_(delta2_stereo) {
     const Eigen::Matrix3d R0 = Eigen::Map<const Eigen::Quaterniond>(pose0).toRotationMatrix();
     const Eigen::Vector3d t0(pose0[4], pose0[5], pose0[6]);
     items_.reserve(active.size());
@@ -150,10 +154,10 @@ class PoseRoundCost final : public ceres::CostFunction {
       double* r = residuals + row;
       double* Ji = J ? J + 6 * row : nullptr;
       if (it.obs->stereo()) {
-        evaluate<3>(it, X, v, Jl, r, Ji, chi2_stereo_);
+        evaluate<3>(it, X, v, Jl, r, Ji, delta2_stereo_);
         row += 3;
       } else {
-        evaluate<2>(it, X, v, Jl, r, Ji, chi2_mono_);
+        evaluate<2>(it, X, v, Jl, r, Ji, delta2_mono_);
         row += 2;
       }
     }
@@ -193,7 +197,7 @@ class PoseRoundCost final : public ceres::CostFunction {
   const Intrinsics K_;
   std::vector<Item> items_;
   const bool robust_;
-  const double chi2_mono_, chi2_stereo_;
+  const double delta2_mono_, delta2_stereo_;
 };
 
 }  // namespace
@@ -236,8 +240,10 @@ PoseOptimizerResult optimize_pose(const Intrinsics& K, const Eigen::Isometry3d& 
     if (active.size() < 3) break;  // keep the previous estimate and classification
     double delta[6] = {0, 0, 0, 0, 0, 0};
     ceres::Problem problem;
-    const bool robust = robust_in_round(round, options.rounds);
-    problem.AddResidualBlock(new PoseRoundCost(K, observations, active, robust, options, pose),
+    double delta2_mono = options.chi2_mono, delta2_stereo = options.chi2_stereo;
+    if (!robust_in_round(round, options.rounds))
+      delta2_mono = delta2_stereo = options.final_huber * options.final_huber;  // 0: plain least squares
+    problem.AddResidualBlock(new PoseRoundCost(K, observations, active, delta2_mono, delta2_stereo, pose),
                              nullptr, delta);
 
     ceres::Solver::Summary summary;

@@ -35,10 +35,11 @@ std::vector<optimize::PoseObservation> current_observations(const std::vector<Fr
 
 std::optional<Eigen::Isometry3d> refine_pose(const optimize::Intrinsics& K, const Eigen::Isometry3d& T_cw_init,
                                              const std::vector<optimize::PoseObservation>& obs, int min_points,
-                                             int rounds) {
+                                             int rounds, double final_huber) {
   if (static_cast<int>(obs.size()) < std::max(min_points, 1)) return std::nullopt;
   optimize::PoseOptimizerOptions o;
   o.rounds = std::max(rounds, 1);
+  o.final_huber = final_huber;
   const optimize::PoseOptimizerResult r = optimize::optimize_pose(K, T_cw_init, obs, o);
   if (r.inliers < min_points) return std::nullopt;
   return r.T_cw;

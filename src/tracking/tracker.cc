@@ -272,8 +272,9 @@ int Tracker::optimize_pose(Frame& f) {
     obs.push_back({f.points[i]->position(), keypoint_observation(f, i)});
     slot.push_back(i);
   }
-  const optimize::PoseOptimizerResult r =
-      optimize::optimize_pose({c.fx, c.fy, c.cx, c.cy, c.bf}, f.T_cw, obs);
+  optimize::PoseOptimizerOptions po;
+  po.final_huber = o_.pose_final_huber_for(sensor_);
+  const optimize::PoseOptimizerResult r = optimize::optimize_pose({c.fx, c.fy, c.cx, c.cy, c.bf}, f.T_cw, obs, po);
   f.set_pose(r.T_cw);
   int inliers = 0;
   for (size_t k = 0; k < slot.size(); ++k) {

@@ -54,6 +54,8 @@ void TrackerOptions::validate() const {
   c.at_least("refine_min_points", refine_min_points, 1);
   c.at_least("refine_rounds", refine_rounds, 1);
   c.at_least("refine_max_pending", refine_max_pending, 1);
+  c.non_negative("pose_final_huber", pose_final_huber, "plain least squares");  // standard deviations
+  c.non_negative("pose_final_huber_mono", pose_final_huber_mono, "plain least squares");
   c.at_least("mono_init_feature_factor", mono_init_feature_factor, 1);
   c.at_least("mask_margin", mask_margin, 0);  // level pixels
   for (const auto& [name, v] : {std::pair<const char*, double>{"motion_th_stereo", motion_th_stereo},

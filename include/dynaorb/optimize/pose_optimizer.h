@@ -20,6 +20,11 @@ struct PoseOptimizerOptions {
   int iterations_per_round = 10;
   double chi2_mono = kChi2Mono;
   double chi2_stereo = kChi2Stereo;
+  // Huber threshold of the last round, in standard deviations (the residual
+  // in pixels times sqrt(inv_sigma2)). 0: the last round is plain least
+  // squares on the inliers, as ORB-SLAM2's. The rounds before it use the
+  // chi2 thresholds above as Huber's, as ORB-SLAM2 does.
+  double final_huber = 0;
 };
 
 struct PoseOptimizerResult {

@@ -43,11 +43,12 @@ std::vector<FrameObservation> frame_observations(const map::Frame& f);
 std::vector<optimize::PoseObservation> current_observations(const std::vector<FrameObservation>& obs);
 
 // Motion-only BA (optimize::optimize_pose: Huber, `rounds` rounds of outlier
-// classification; tracking runs four) from T_cw_init. nullopt, for the
+// classification; tracking runs four; final_huber as tracking's
+// TrackerOptions::pose_final_huber) from T_cw_init. nullopt, for the
 // caller to keep the pose it had, when fewer than min_points observations
 // are given or fewer than min_points of them end as inliers.
 std::optional<Eigen::Isometry3d> refine_pose(const optimize::Intrinsics& K, const Eigen::Isometry3d& T_cw_init,
                                              const std::vector<optimize::PoseObservation>& obs, int min_points,
-                                             int rounds = 4);
+                                             int rounds = 4, double final_huber = 0);
 
 }  // namespace dynaorb::tracking

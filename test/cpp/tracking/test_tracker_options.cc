@@ -27,6 +27,7 @@ TEST(TrackerOptions, DefaultsAreValid) { EXPECT_NO_THROW(TrackerOptions().valida
 TEST(TrackerOptions, ZeroIsAcceptedWhereItMeansOff) {
   EXPECT_EQ(refusal([](TrackerOptions& o) { o.new_map_after_lost_s = 0; }), "");
   EXPECT_EQ(refusal([](TrackerOptions& o) { o.refine_lag_keyframes = 0; }), "");
+  EXPECT_EQ(refusal([](TrackerOptions& o) { o.pose_final_huber = 0; }), "");
   EXPECT_EQ(refusal([](TrackerOptions& o) { o.min_frames = 0; }), "");
   EXPECT_EQ(refusal([](TrackerOptions& o) { o.stereo_right_budget_max_factor = 1; }), "");
   EXPECT_EQ(refusal([](TrackerOptions& o) { o.ref_ratio_mono = 1; }), "");
@@ -68,6 +69,9 @@ TEST(TrackerOptions, BadValuesAreRefusedByName) {
       {"'refine_min_points' is 0", [](TrackerOptions& o) { o.refine_min_points = 0; }},
       {"'refine_rounds' is 0", [](TrackerOptions& o) { o.refine_rounds = 0; }},
       {"'refine_max_pending' is 0", [](TrackerOptions& o) { o.refine_max_pending = 0; }},
+      {"'pose_final_huber' is -0.5", [](TrackerOptions& o) { o.pose_final_huber = -0.5; }},
+      {"'pose_final_huber' is nan", [&](TrackerOptions& o) { o.pose_final_huber = nan; }},
+      {"'pose_final_huber_mono' is inf", [&](TrackerOptions& o) { o.pose_final_huber_mono = inf; }},
       {"'mono_init_feature_factor' is 0", [](TrackerOptions& o) { o.mono_init_feature_factor = 0; }},
       {"'motion_th_stereo' is 0", [](TrackerOptions& o) { o.motion_th_stereo = 0; }},
       {"'reloc.wide_window' is nan", [&](TrackerOptions& o) { o.reloc.wide_window = nan; }},
