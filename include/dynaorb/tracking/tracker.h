@@ -156,7 +156,7 @@ struct TrackerOptions {
   // stereo their weighted residuals have an RMS of 0.41 but a robust spread
   // (1.4826 MAD) of 0.09-0.15 and a kurtosis of 8-10, so the few keypoints
   // found a pixel or two off decide a least-squares pose.
-  // Stereo / RGB-D 0 -> 0.5, synchronous (`dynaorb run`): EuRoC V1 stereo
+  // Stereo / RGB-D with 0.5 (`--tracker pose_final_huber=0.5`), synchronous (`dynaorb run`): EuRoC V1 stereo
   //   0.872 -> 0.724 mm (RPE 0.94 -> 0.65 mm), KITTI 06 59.2 -> 56.8 mm
   //   (RPE 11.4 -> 11.0 mm); `dynaorb bench --suite seeds --seeds 12`,
   //   geometric mean of the per-seed ATE ratios: stereo static 0.958,
@@ -166,13 +166,18 @@ struct TrackerOptions {
   //   `full` 0.87 -> 0.72 mm (6 of 6), synthetic stereo `full` 3.46 -> 3.06
   //   (5 of 6), KITTI 06 `off` 41.5 -> 41.4 (3 of 6). 0.25-0.7 all help
   //   (offline solves of the same inliers); 1.0 less (V1 0.80 mm).
-  // Monocular stays at ORB-SLAM2's 0 although MH_05 `full` with the network,
-  //   asynchronous, goes 16.5 -> 12.7 mm with 0.5 (6 of 6 pairs): on the
-  //   synthetic rooms the static runs gain and the `full` ones do not
-  //   (seeds 0-11 geometric means 0.950 / 0.974), so the `full` / static
-  //   median of seeds 0-2 the end-to-end test holds to 1.2 goes 1.10 ->
-  //   1.26 (1.20 with 1.0).
-  double pose_final_huber = 0.5;
+  // Monocular with 0.5: MH_05 `full` with the network, asynchronous, 16.5
+  //   -> 12.7 mm (6 of 6 pairs); on the synthetic rooms the static runs
+  //   gain and the `full` ones do not (seeds 0-11 geometric means 0.950 /
+  //   0.974), so the `full` / static median of seeds 0-2 the end-to-end
+  //   test holds to 1.2 goes 1.10 -> 1.26 (1.20 with 1.0).
+  // Not the default yet (0 for every sensor, ORB-SLAM2's): with 0.5 for
+  //   stereo and RGB-D two tests that hold ratios to the error of the best
+  //   run fail because that run gains most: test_label_delay's moved /
+  //   exact labels 1.38 > 1.3 (2.94 against 2.12 mm; 3.1 against 2.8 with
+  //   0) and test_dynamic_e2e's epipolar-only diagnostic. Their bounds
+  //   need to be re-derived before the default can change.
+  double pose_final_huber = 0;
   double pose_final_huber_mono = 0;
   double pose_final_huber_for(Sensor s) const { return s == Sensor::kMono ? pose_final_huber_mono : pose_final_huber; }
   // New keyframe when tracking < ratio * reference's points (ORB-SLAM2's
