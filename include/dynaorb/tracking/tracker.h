@@ -156,9 +156,9 @@ struct TrackerOptions {
   // stereo their weighted residuals have an RMS of 0.41 but a robust spread
   // (1.4826 MAD) of 0.09-0.15 and a kurtosis of 8-10, so the few keypoints
   // found a pixel or two off decide a least-squares pose.
-  // Stereo / RGB-D with 0.5 (`--tracker pose_final_huber=0.5`), synchronous (`dynaorb run`): EuRoC V1 stereo
-  //   0.872 -> 0.724 mm (RPE 0.94 -> 0.65 mm), KITTI 06 59.2 -> 56.8 mm
-  //   (RPE 11.4 -> 11.0 mm); `dynaorb bench --suite seeds --seeds 12`,
+  // Stereo / RGB-D with 0.5 (`--tracker pose_final_huber=0.5`), synchronous
+  //   (`dynaorb run`): EuRoC V1 stereo 0.872 -> 0.724 mm (RPE 0.94 -> 0.65
+  //   mm), KITTI 06 59.2 -> 56.8 mm (RPE 11.4 -> 11.0 mm); `dynaorb bench --suite seeds --seeds 12`,
   //   geometric mean of the per-seed ATE ratios: stereo static 0.958,
   //   `full` 0.968, masks 1.001; RGB-D 0.963 / 0.965 / 0.941; the end-to-end
   //   `full` / static medians of seeds 0-2 RGB-D 1.11 -> 0.94, stereo 1.09
@@ -175,7 +175,8 @@ struct TrackerOptions {
   //   stereo and RGB-D two tests that hold ratios to the error of the best
   //   run fail because that run gains most: test_label_delay's moved /
   //   exact labels 1.38 > 1.3 (2.94 against 2.12 mm; 3.1 against 2.8 with
-  //   0) and test_dynamic_e2e's epipolar-only diagnostic. Their bounds
+  //   0) and, by its place in that CI run's order, test_dynamic_e2e's
+  //   epipolar-only diagnostic (docs/slam-core.md). Their bounds
   //   need to be re-derived before the default can change.
   double pose_final_huber = 0;
   double pose_final_huber_mono = 0;
