@@ -158,8 +158,8 @@ struct TrackerOptions {
   // found a pixel or two off decide a least-squares pose.
   // Stereo / RGB-D with 0.5 (`--tracker pose_final_huber=0.5`), synchronous
   //   (`dynaorb run`): EuRoC V1 stereo 0.872 -> 0.724 mm (RPE 0.94 -> 0.65
-  //   mm), KITTI 06 59.2 -> 56.8 mm (RPE 11.4 -> 11.0 mm); `dynaorb bench --suite seeds --seeds 12`,
-  //   geometric mean of the per-seed ATE ratios: stereo static 0.958,
+  //   mm), KITTI 06 59.2 -> 56.8 mm (RPE 11.4 -> 11.0 mm); `dynaorb bench
+  //   --suite seeds --seeds 12`, geometric mean of the per-seed ATE ratios: stereo static 0.958,
   //   `full` 0.968, masks 1.001; RGB-D 0.963 / 0.965 / 0.941; the end-to-end
   //   `full` / static medians of seeds 0-2 RGB-D 1.11 -> 0.94, stereo 1.09
   //   -> 0.98, `li` 1.28 -> 1.13. Asynchronous, 6 interleaved pairs: V1
