@@ -12,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
+#include "../stats_util.h"
 #include "dynaorb/core/sensor.h"
 #include "dynaorb/map/calibration.h"
 
@@ -194,17 +195,8 @@ inline double epipolar_distance(const cv::Matx33d& F, const cv::Point2f& p, cons
   return n > 0 ? std::abs(q.x * l[0] + q.y * l[1] + l[2]) / n : std::numeric_limits<double>::infinity();
 }
 
-inline double median(std::vector<double> v) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
-
-inline double percentile(std::vector<double> v, double p) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  const size_t k = std::min(v.size() - 1, static_cast<size_t>(p * v.size()));
-  std::nth_element(v.begin(), v.begin() + k, v.end());
-  return v[k];
-}
+// The order statistics, for the tests that use this namespace.
+using dynaorb::test::median;
+using dynaorb::test::percentile;
 
 }  // namespace dynaorb::test::synth

@@ -11,6 +11,7 @@
 
 #include "../../../src/optimize/reprojection_cost.h"
 #include "dynaorb/optimize/pose_optimizer.h"
+#include "../stats_util.h"
 #include "pose_test_util.h"
 
 namespace {
@@ -306,11 +307,6 @@ std::vector<double> center_errors(double final_huber, double sharp_px, double ta
     errors.push_back(center_error(optimize_pose(s.K, T_init, s.obs, o).T_cw, s.T_true));
   }
   return errors;
-}
-
-double median(std::vector<double> v) {
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
 }
 
 TEST(PoseOptimizer, FinalHuberResistsHeavyTailedInliers) {
