@@ -11,7 +11,7 @@
 // final round 3 is plain least squares on the inliers. We follow that code (see
 // robust_in_round); for other round counts only the last round runs without Huber. With
 // options.final_huber > 0 the last round keeps a Huber kernel of that many standard deviations
-// (TrackerOptions::pose_final_huber holds what it was measured to do).
+// (TrackerOptions::pose_final_huber holds why tracking sets one).
 //
 // Differences from ORB-SLAM2, on purpose:
 //  - each round continues from the previous round's estimate (ORB-SLAM2 restarts every round

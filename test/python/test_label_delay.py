@@ -52,5 +52,14 @@ def test_propagation_gives_back_what_a_lagging_network_costs(synth_scenes, tmp_p
             assert stats["track_call_plus_labels_ms_median"] >= stats["track_call_ms_median"]
         else:
             assert stats["labels_ms"] is None and stats["track_call_plus_labels_ms_median"] is None
-    assert ate["moved"] <= 1.3 * ate["exact"], ate     # measured 3.1 against 2.8 mm
-    assert ate["as_is"] >= 3 * ate["exact"], ate       # measured 207 mm: the problem the flow solves
+    # What the lag costs, and how much of it propagation gives back. Measured,
+    # exact / moved / as-is labels: 2.12 / 2.94 / 150 mm (moved / exact 1.38,
+    # 99.4 % of the cost given back); seeds 1 / 2 (not run here) 1.08 / 1.04
+    # and 99.9 / 99.4 %. With plain least squares in motion-only BA's last
+    # round (TrackerOptions::pose_final_huber 0) 2.45 / 2.88 / 205 mm (1.17):
+    # the kernel helps the exact labels' run most, so the ratio, held to 1.3
+    # before, is 1.5 now.
+    assert ate["moved"] <= 1.5 * ate["exact"], ate
+    assert ate["as_is"] >= 3 * ate["exact"], ate       # the problem the flow solves
+    given_back = (ate["as_is"] - ate["moved"]) / (ate["as_is"] - ate["exact"])
+    assert given_back >= 0.97, ate
