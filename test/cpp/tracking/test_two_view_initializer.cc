@@ -11,6 +11,7 @@
 #include <random>
 #include <vector>
 
+#include "../stats_util.h"
 #include "dynaorb/tracking/two_view_initializer.h"
 
 namespace {
@@ -116,8 +117,7 @@ double median_point_error(const Scene& s, const TwoViewResult& r) {
     if (r.triangulated[i] && !s.outlier[i])
       err.push_back((scale * r.points[i] - s.X[i]).norm() / s.X[i].norm());
   if (err.empty()) return 1e9;
-  std::nth_element(err.begin(), err.begin() + err.size() / 2, err.end());
-  return err[err.size() / 2];
+  return dynaorb::test::median(err);
 }
 
 TEST(TwoViewInitializer, PlanarSceneSelectsHomography) {
@@ -304,8 +304,8 @@ TEST(TwoViewInitializer, PointsMatchGroundTruthUpToScale) {
     EXPECT_GT(md, 0);
     std::vector<double> z;
     for (const auto& X : s.X) z.push_back(X.z());
-    std::nth_element(z.begin(), z.begin() + z.size() / 2, z.end());
-    EXPECT_NEAR(md * s.t.norm(), z[z.size() / 2], 0.05 * z[z.size() / 2]);
+    const double z_median = dynaorb::test::median(z);
+    EXPECT_NEAR(md * s.t.norm(), z_median, 0.05 * z_median);
   }
 }
 
