@@ -309,7 +309,7 @@ def test_report_renders_from_results(tmp_path):
     path = report.write(report.load(tmp_path), tmp_path)
     text = path.read_text()
     # dynaorb's ATE median 0.03 over two runs (0.02-0.04), ORB-SLAM3 0.01: ratio 3.00; ms 45 / 60 = 0.75.
-    assert "| s | stereo | 0.0300 | 0.0100 | 3.00 | 45.0 | 60.0 | 0.75 |" in text
+    assert "| s | stereo | 0.0300 | 0.0100 | 3.00 | 45.0 | 60.0 | 0.75 | 0.67 |" in text  # run 1 has no peer run
     assert "0.0300 (0.0200-0.0400)" in text
     assert "s:stereo:li: died of signal SIGSEGV" in text and "- x: why" in text
     # Tracked on far fewer frames than the peer: the ATE ratio is flagged as not comparable.
@@ -334,6 +334,22 @@ def test_pair_table_counts_the_labels_time_of_the_tracking_thread(tmp_path):
     assert "| 52.0 (45.0 + labels 6.0) | 60.0 | 0.87 |" in "\n".join(report.pair_table([p]))
     # Without a network (no labels' time) the track call alone, as before.
     assert report.pairs(rows, "off")[0]["ms_ratio"] == pytest.approx(40.0 / 60.0)
+
+
+def test_ms_ratios_pair_each_run_with_the_peer_run_made_beside_it():
+    # The machine got faster between the runs: ours 40 -> 20 ms, the peer's 50 -> 25. Run by run ours is
+    # 0.80x both times; the medians (30 / 37.5) say the same, but not what each pair measured.
+    records = [_record("s:stereo:full", "dynaorb", "full", 0.02, 40.0, 0), _record("s:stereo:full", "dynaorb", "full", 0.02, 20.0, 1),
+               _record("s:stereo:orbslam3", "orbslam3", "off", 0.01, 25.0, 1), _record("s:stereo:orbslam3", "orbslam3", "off", 0.01, 50.0, 0),
+               {**_record("s:stereo:full", "dynaorb", "full", None, 1.0, 2), "error": "died"},
+               _record("s:stereo:orbslam3", "orbslam3", "off", 0.01, 30.0, 2)]
+    p = report.pairs(report.aggregate(records), "full", records)[0]
+    assert p["ms_ratio_runs"] == pytest.approx([0.8, 0.8])  # in run order; run 2 failed on our side
+    assert "| 0.80 / 0.80 |" in "\n".join(report.pair_table([p]))
+    # The labels' time counts as in the medians; without the records no run-by-run figure.
+    records[0] = {**records[0], "track_call_plus_labels_ms_median": 45.0}
+    assert report.pairs(report.aggregate(records), "full", records)[0]["ms_ratio_runs"] == pytest.approx([0.9, 0.8])
+    assert report.pairs(report.aggregate(records), "full")[0]["ms_ratio_runs"] == []
 
 
 def _tum(path: pathlib.Path, stamps, xyz) -> str:

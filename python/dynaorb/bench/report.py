@@ -3,7 +3,7 @@
 Tables: per case (ATE, RPE, tracked %, ms/frame, fps, peak memory; medians
 over the runs, ATE min-max), each dynamic preset against `off` on the same
 sequence, dynaorb against ORB-SLAM3 pair by pair (ratios of ATE and of ms per
-frame), and the tracking thread's stages. Plots: per sequence the
+frame, the latter also run by run), and the tracking thread's stages. Plots: per sequence the
 trajectories (ground truth, dynaorb off, ORB-SLAM3; first run of each, under
 the evaluation's own alignment) and the error over time (every preset and
 the peer), and a per-stage time bar chart.
@@ -105,8 +105,24 @@ def pairs(rows: list[dict], preset: str = "off", records: list[dict] | None = No
         common = common_frames.compare(runs[o["case"]], runs[r["case"]], bench_dir) if records else None
         out.append({"sequence": r["sequence"], "sensor": r["sensor"], "ours": o, "theirs": r,
                     "ate_ratio": _ratio(o["ate_rmse"], r["ate_rmse"]),
-                    "ms_ratio": _ratio(o["thread_ms_median"], r["track_call_ms_median"]), "common": common})
+                    "ms_ratio": _ratio(o["thread_ms_median"], r["track_call_ms_median"]),
+                    "ms_ratio_runs": run_ms_ratios(runs[o["case"]], runs[r["case"]]), "common": common})
     return out
+
+
+def _thread_ms(record: dict):
+    """A run's median ms per frame as the pair table compares it (with the labels' time where there is one)."""
+    return record.get("track_call_plus_labels_ms_median") or record.get("track_call_ms_median")
+
+
+def run_ms_ratios(ours: list[dict], theirs: list[dict]) -> list[float]:
+    """Ours / theirs ms per frame run by run: run r of ours against the peer's run r, which the bench makes
+    right after it on the same sequence (suite_runner), so that the machine's drift between runs (a third
+    of the time per frame within minutes, seen here) falls on both; in run order, runs both finished."""
+    mine = {r.get("run"): _thread_ms(r) for r in ours if not r.get("error")}
+    peer = {r.get("run"): r.get("track_call_ms_median") for r in theirs if not r.get("error")}
+    return [v for run in sorted(k for k in mine if k is not None and k in peer)
+            if (v := _ratio(mine[run], peer[run])) is not None]
 
 
 def preset_vs_off(rows: list[dict]) -> list[dict]:
@@ -187,11 +203,13 @@ def _common_cell(p: dict) -> str:
 def pair_table(ps: list[dict]) -> list[str]:
     return markdown_table(
         ["sequence", "sensor", "ATE dynaorb [m]", "ATE ORB-SLAM3 [m]", "ATE ours/theirs",
-         "ms/frame dynaorb (track call + labels)", "ms/frame ORB-SLAM3", "ms ours/theirs", "tracked dynaorb",
-         "tracked ORB-SLAM3", "ATE ours/theirs over the frames both tracked"],
+         "ms/frame dynaorb (track call + labels)", "ms/frame ORB-SLAM3", "ms ours/theirs",
+         "ms ours/theirs run by run", "tracked dynaorb", "tracked ORB-SLAM3",
+         "ATE ours/theirs over the frames both tracked"],
         ([p["sequence"], p["sensor"], _f(p["ours"]["ate_rmse"], "{:.4f}"), _f(p["theirs"]["ate_rmse"], "{:.4f}"),
           _ate_ratio_cell(p), _ours_ms_cell(p["ours"]),
           _f(p["theirs"]["track_call_ms_median"], "{:.1f}"), _f(p["ms_ratio"], "{:.2f}"),
+          " / ".join(f"{v:.2f}" for v in p.get("ms_ratio_runs") or []) or "n/a",
           _pct(p["ours"]["tracked_fraction"]), _pct(p["theirs"]["tracked_fraction"]), _common_cell(p)]
          for p in ps))
 
