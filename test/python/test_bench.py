@@ -150,6 +150,30 @@ def test_resume_takes_finished_runs_from_their_folders(tiny_suite):
     assert json.loads((off / "record.json").read_text()) == third["records"][0]
 
 
+def test_part_of_a_suite_by_sequence_sensor_and_preset():
+    from dynaorb.bench.suites import Case, SelectionError, Sequence, select
+
+    a_stereo, a_mono, b = (Sequence(f"synth/{n}", "kitti", f"/nowhere/{n}", sensor)
+                           for n, sensor in (("a", "stereo"), ("a", "mono"), ("b", "stereo")))
+    cases = [Case(seq, p) for seq in (a_stereo, a_mono, b) for p in ("off", "dm", "full")]
+    not_run = [{"what": "synth/a:mono:li", "reason": "li is stereo only"},
+               {"what": "euroc/X", "reason": "/data/euroc/X not found"}]
+    suite = Suite("full", cases, [a_stereo, a_mono, b], not_run)
+    # By name: every sensor; by NAME:SENSOR: that one. What is said about the others goes with them.
+    part = select(suite, ("synth/a",))
+    assert part.sequences == [a_stereo, a_mono] and len(part.cases) == 6 and part.not_run == not_run[:1]
+    part = select(suite, ("synth/a:mono", "synth/b"), ("full",))
+    assert [c.key for c in part.cases] == ["synth/a:mono:off", "synth/a:mono:full", "synth/b:stereo:off",
+                                           "synth/b:stereo:full"]
+    assert select(suite, None, ("dm",)).sequences == suite.sequences  # presets alone: every clip, off and dm
+    with pytest.raises(SelectionError, match=r"no sequence 'synth/c' \(it has: synth/a:stereo, synth/a:mono"):
+        select(suite, ("synth/c",))
+    with pytest.raises(SelectionError, match="not found"):  # a clip the suite lists as not run says why
+        select(suite, ("euroc/X",))
+    with pytest.raises(SelectionError, match=r"preset\(s\) li \(they run: dm, full, off\)"):
+        select(suite, ("synth/a",), ("li",))
+
+
 def test_the_peer_runs_beside_ours_sequence_by_sequence(tmp_path, monkeypatch):
     """Run r of every case of a sequence, then the peer's run r on it: both systems' runs on one sequence are
     made minutes apart, not a whole suite apart."""
@@ -182,6 +206,18 @@ def test_the_peer_runs_beside_ours_sequence_by_sequence(tmp_path, monkeypatch):
                     ("dynaorb", "synth/b:stereo:off", 1), ("orbslam3", "synth/b:stereo:orbslam3", 1)]
     assert [(r["system"], r["case"], r["run"]) for r in results["records"]] == made
     assert results["peer"] == {"status": "run"} and results["finished"]
+    # One clip again with more runs: its `off` beside the preset asked for, and the peer on it.
+    made.clear()
+    results = suite_runner.run_suite(suite_runner.BenchOptions(out=str(tmp_path / "part"), runs=3, only=("synth/a",),
+                                                               presets=("dm",)),
+                                     suite=Suite("order", cases + [Case(a, "full")], [a, b], []),
+                                     progress=lambda m: None)
+    assert made == [(system, case, run) for run in range(3) for system, case in
+                    (("dynaorb", "synth/a:stereo:off"), ("dynaorb", "synth/a:stereo:dm"),
+                     ("orbslam3", "synth/a:stereo:orbslam3"))]
+    assert results["only"] == ["synth/a"] and results["presets"] == ["dm"]
+    assert report.selection_text(results) == ", part of it (only synth/a; presets off, dm)"
+    assert report.selection_args(results) == " --only synth/a --presets dm"
 
 
 def test_peer_failure_is_recorded_and_the_bench_goes_on(tmp_path, data):

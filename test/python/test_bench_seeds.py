@@ -116,6 +116,14 @@ def test_cli_refuses_bad_seed_options_before_running(tmp_path, capsys):
         assert main(["bench", "--suite", "quick", "--realtime", rate, "--out", str(out)]) == 2, rate
         assert "expected a positive number" in capsys.readouterr().err
     assert not out.exists()
+    # --only / --presets: clips and presets of the quick / full / long suites, refused before any run.
+    assert main(["bench", "--suite", "seeds", "--only", "synth/rgbd_m3", "--out", str(out)]) == 2
+    assert "--sensors, --conditions and --preset" in capsys.readouterr().err
+    assert main(["bench", "--suite", "quick", "--only", "synth/mono_m3", "--out", str(out)]) == 2
+    assert "suite quick has no sequence 'synth/mono_m3' (it has: " in capsys.readouterr().err
+    assert main(["bench", "--suite", "quick", "--only", "synth/rgbd_m3", "--presets", "dm,nope", "--out", str(out)]) == 2
+    assert "preset(s) nope" in capsys.readouterr().err
+    assert not out.exists()
 
 
 def test_peer_ratios_are_ours_over_orbslam3_seed_by_seed():

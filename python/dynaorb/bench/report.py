@@ -382,11 +382,24 @@ def build_text(b: dict | None) -> str:
     return f"dynaorb at {commit}, core fingerprint {b.get('core')}"
 
 
+def selection_text(results: dict) -> str:
+    """", part of it: ..." where the bench ran only some clips or presets of the suite (--only, --presets)."""
+    parts = ([f"only {', '.join(results['only'])}"] if results.get("only") else []) + \
+            ([f"presets off, {', '.join(results['presets'])}"] if results.get("presets") else [])
+    return f", part of it ({'; '.join(parts)})" if parts else ""
+
+
+def selection_args(results: dict) -> str:
+    """The command-line options that picked the part of the suite, or ""."""
+    return (f" --only {','.join(results['only'])}" if results.get("only") else "") + \
+           (f" --presets {','.join(results['presets'])}" if results.get("presets") else "")
+
+
 def render(results: dict, out: pathlib.Path, plots: dict | None = None, stages_png=None) -> str:
     rows = aggregate(results["records"])
     m = results.get("machine", {})
     peer = results.get("peer") or {}
-    lines = [f"# Benchmark: suite {results['suite']}", "",
+    lines = [f"# Benchmark: suite {results['suite']}{selection_text(results)}", "",
              f"{results['runs']} run(s) per case; started {results.get('started')}, finished {results.get('finished')}; "
              f"{m.get('cpus')} CPUs ({m.get('cpu', 'unknown CPU')}), {m.get('platform')}; "
              f"{build_text(results.get('build'))}.", "",

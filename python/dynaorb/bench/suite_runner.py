@@ -34,7 +34,7 @@ import sys
 
 from dynaorb.bench.build_info import build, core_fingerprint
 from dynaorb.bench.process import child_env, run_child
-from dynaorb.bench.suites import Case, Sequence, Suite, build_suite, ensure_rendered
+from dynaorb.bench.suites import Case, Sequence, Suite, build_suite, ensure_rendered, select
 
 log = logging.getLogger(__name__)
 
@@ -60,6 +60,10 @@ class BenchOptions:
     # alike (a camera or `rosbag play`; ORB-SLAM3's example runners pace the same way); 0: as fast as the
     # track calls take them.
     realtime: float = 0.0
+    # Part of the suite (suites.select): sequences as NAME or NAME:SENSOR, and the presets run beside `off`;
+    # None: all of them.
+    only: tuple[str, ...] | None = None
+    presets: tuple[str, ...] | None = None
 
 
 def _slug(text: str) -> str:
@@ -231,13 +235,15 @@ def run_suite(opts: BenchOptions, suite: Suite | None = None, progress=print) ->
     from dynaorb.synth.textures import default_texture_dir
 
     out = pathlib.Path(opts.out)
-    out.mkdir(parents=True, exist_ok=True)
     if suite is None:
         data = default_texture_dir()
         if data is None:
             raise FileNotFoundError("the shared data folder was not found (set DYNAORB_SHARED)")
         suite = build_suite(opts.suite, pathlib.Path(data),
                             pathlib.Path(opts.synth_root) if opts.synth_root else out / "synth")
+    if opts.only or opts.presets:
+        suite = select(suite, opts.only, opts.presets)  # before anything is written
+    out.mkdir(parents=True, exist_ok=True)
     for seq in suite.sequences:
         if seq.synthetic:
             progress(f"rendering {seq.name} (once; cached in {seq.synthetic['out']})")
@@ -246,6 +252,7 @@ def run_suite(opts: BenchOptions, suite: Suite | None = None, progress=print) ->
                "machine": machine(), "build": build(), "mapping": mapping_mode(opts.realtime),
                "realtime": opts.realtime or None,
                "vocabulary": opts.vocabulary, "not_run": list(suite.not_run),
+               "only": list(opts.only) if opts.only else None, "presets": list(opts.presets) if opts.presets else None,
                "sequences": [dataclasses.asdict(s) for s in suite.sequences], "records": [], "peer": None,
                "finished": None}
     peer = _peer_setup(opts, progress)

@@ -146,6 +146,40 @@ def cases_for(sequences: list[Sequence], presets: tuple[str, ...] | None = None)
     return cases, not_run
 
 
+class SelectionError(ValueError):
+    """`dynaorb bench --only / --presets` named what the suite does not have."""
+
+
+def select(suite: Suite, only: tuple[str, ...] | None = None, presets: tuple[str, ...] | None = None) -> Suite:
+    """The suite cut to some of its clips and presets, e.g. to run one clip with more runs: `only` names
+    sequences as NAME (every sensor it runs with) or NAME:SENSOR, `presets` the presets kept beside `off`
+    (always kept: the baseline of the preset table). SelectionError for a name that matches nothing,
+    with what the suite has (or why the sequence is not run)."""
+    sequences = suite.sequences
+    if only:
+        keep = []
+        for name in only:
+            hits = [s for s in sequences if name in (s.name, s.key)]
+            if not hits:
+                why = [n["reason"] for n in suite.not_run if n["what"] in (name, name.split(":")[0])]
+                raise SelectionError(f"suite {suite.name} has no sequence {name!r}"
+                                 + (f" to run ({why[0]})" if why else
+                                    f" (it has: {', '.join(s.key for s in sequences)})"))
+            keep += [s for s in hits if s not in keep]
+        sequences = [s for s in sequences if s in keep]
+    cases = [c for c in suite.cases if c.sequence in sequences]
+    if presets:
+        have = {c.preset for c in cases}
+        unknown = [p for p in presets if p not in have]
+        if unknown:
+            raise SelectionError(f"no case of the selected sequences runs preset(s) {', '.join(unknown)} "
+                             f"(they run: {', '.join(sorted(have))})")
+        cases = [c for c in cases if c.preset == "off" or c.preset in presets]
+    keys = {s.key for s in sequences}
+    not_run = [n for n in suite.not_run if not only or any(n["what"].startswith(k) for k in keys)]
+    return Suite(suite.name, cases, sequences, not_run)
+
+
 def long_sequences(root: pathlib.Path) -> list[Sequence]:
     """The long suite's sequences: the stereo render, and its left images as monocular."""
     stereo = synth_sequence("stereo", 0, root, frames=LONG_FRAMES, seed=LONG_SEED)

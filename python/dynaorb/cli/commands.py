@@ -172,8 +172,13 @@ def cmd_bench(args) -> int:
         print("dynaorb bench: --realtime paces the quick, full and long suites' runs; the seeds suite maps "
               "synchronously and the segmentation suite times the network", file=sys.stderr)
         return 2
+    if (args.only or args.presets) and args.suite not in ("quick", "full", "long"):
+        print("dynaorb bench: --only and --presets pick clips and presets of the quick, full and long suites "
+              "(the seeds suite has --sensors, --conditions and --preset)", file=sys.stderr)
+        return 2
     if args.suite in ("quick", "full", "long"):
         from dynaorb.bench.suite_runner import BenchOptions, run_suite
+        from dynaorb.bench.suites import SelectionError
         from dynaorb.runner.pacing import Pacer
 
         if args.realtime:
@@ -182,9 +187,14 @@ def cmd_bench(args) -> int:
             except ValueError as exc:
                 print(f"dynaorb bench: {exc}", file=sys.stderr)
                 return 2
-        run_suite(BenchOptions(suite=args.suite, out=args.out, runs=args.runs or 3, peer=not args.no_peer,
-                               peer_venv=args.peer_venv, segment_model=_bench_network(args),
-                               resume=args.resume, realtime=args.realtime, synth_root=args.synth_root))
+        try:
+            run_suite(BenchOptions(suite=args.suite, out=args.out, runs=args.runs or 3, peer=not args.no_peer,
+                                   peer_venv=args.peer_venv, segment_model=_bench_network(args),
+                                   resume=args.resume, realtime=args.realtime, synth_root=args.synth_root,
+                                   only=_comma_list(args.only), presets=_comma_list(args.presets)))
+        except SelectionError as exc:  # --only / --presets naming what the suite does not have
+            print(f"dynaorb bench: {exc}", file=sys.stderr)
+            return 2
         print((out / "report.md").read_text())
         if args.readme:
             _write_readme(out)
@@ -207,6 +217,11 @@ def cmd_bench(args) -> int:
         print((out / "seeds.md").read_text())
         return 0
     return _bench_segmentation(args)
+
+
+def _comma_list(text: str | None) -> tuple[str, ...] | None:
+    items = tuple(x.strip() for x in (text or "").split(",") if x.strip())
+    return items or None
 
 
 def _model_folders(args) -> list[pathlib.Path]:

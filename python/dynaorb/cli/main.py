@@ -223,6 +223,12 @@ def build_parser() -> argparse.ArgumentParser:
         b.add_argument(flag, metavar="KEY=VALUE", action="append", default=[],
                        help=f"seeds: a {what} option for every dynaorb run, as `dynaorb run {flag}` "
                             "(repeatable; a variant under test against the defaults of another --out)")
+    b.add_argument("--only", metavar="SEQ[,SEQ...]",
+                   help="quick/full/long: only these sequences of the suite, as NAME (every sensor) or "
+                        "NAME:SENSOR, e.g. synth/mono_m3 or euroc/MH_05_difficult_head:mono (one clip again "
+                        "with more --runs)")
+    b.add_argument("--presets", metavar="PRESET[,PRESET...]",
+                   help="quick/full/long: only these dynamic presets beside `off` (default: every preset)")
     b.add_argument("--no-peer", action="store_true", help="quick/full/long: without the ORB-SLAM3 comparison")
     b.add_argument("--realtime", type=float, nargs="?", const=1.0, default=0.0, metavar="RATE",
                    help="quick/full/long: deliver the frames to dynaorb and to ORB-SLAM3 alike at RATE times the "
