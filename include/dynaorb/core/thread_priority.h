@@ -22,6 +22,20 @@
 // 14.46 -> 14.60 (5 + 5), KITTI 06 `off` 11.87 -> 12.85 (6 + 6; 11.45 ->
 // 12.12 in another 4 + 4): the shorter slices preempt the tracking thread
 // more often too.
+//
+// Nor a short slice for the background threads instead (the tracking side
+// unchanged), to end the wait of a woken foreground helper behind local
+// mapping: on Linux 6.18 with HZ 250 a woken FrameBuilder helper that does
+// not preempt the nice-10 mapping thread at once waits for the next tick. On
+// the synthetic monocular clip with movers (`full`, unpaced, asynchronous)
+// the helper began its first pyramid level more than 1.4 ms after the
+// extraction started on 16 of 60 frames (up to 4.8 ms; sched_switch traces
+// show local mapping on the other core until the tick), and on 5 of 60 with
+// a 100 us slice for the background threads (sched_setattr's
+// sched_runtime). Track call medians in paired runs, 300 us slice against
+// none: that clip -0.63 ms (10 of 12 pairs faster), then -0.06 (8 of 16),
+// paced -0.10 (5 of 10); KITTI 06 `off` +1.06 (2 of 8), then -0.29 (8 of
+// 14); synthetic stereo with movers +0.03 (4 of 8). Within the runs' spread.
 
 #include <string>
 
