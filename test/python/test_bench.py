@@ -157,7 +157,8 @@ def test_part_of_a_suite_by_sequence_sensor_and_preset():
                            for n, sensor in (("a", "stereo"), ("a", "mono"), ("b", "stereo")))
     cases = [Case(seq, p) for seq in (a_stereo, a_mono, b) for p in ("off", "dm", "full")]
     not_run = [{"what": "synth/a:mono:li", "reason": "li is stereo only"},
-               {"what": "euroc/X", "reason": "/data/euroc/X not found"}]
+               {"what": "euroc/X", "reason": "/data/euroc/X not found"},
+               {"what": "synth/b:rgbd", "reason": "no data for sensor 'rgbd'"}]
     suite = Suite("full", cases, [a_stereo, a_mono, b], not_run)
     # By name: every sensor; by NAME:SENSOR: that one. What is said about the others goes with them.
     part = select(suite, ("synth/a",))
@@ -165,6 +166,7 @@ def test_part_of_a_suite_by_sequence_sensor_and_preset():
     part = select(suite, ("synth/a:mono", "synth/b"), ("full",))
     assert [c.key for c in part.cases] == ["synth/a:mono:off", "synth/a:mono:full", "synth/b:stereo:off",
                                            "synth/b:stereo:full"]
+    assert part.not_run == not_run[:1] + not_run[2:]  # asked for by name: its sensor without data is said too
     assert select(suite, None, ("dm",)).sequences == suite.sequences  # presets alone: every clip, off and dm
     with pytest.raises(SelectionError, match=r"no sequence 'synth/c' \(it has: synth/a:stereo, synth/a:mono"):
         select(suite, ("synth/c",))

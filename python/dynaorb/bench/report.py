@@ -383,7 +383,8 @@ def build_text(b: dict | None) -> str:
 
 
 def selection_text(results: dict) -> str:
-    """", part of it: ..." where the bench ran only some clips or presets of the suite (--only, --presets)."""
+    """What the report's title adds where the bench ran only some clips or presets of the suite (--only,
+    --presets): ", part of it (only ...; presets off, ...)", else ""."""
     parts = ([f"only {', '.join(results['only'])}"] if results.get("only") else []) + \
             ([f"presets off, {', '.join(results['presets'])}"] if results.get("presets") else [])
     return f", part of it ({'; '.join(parts)})" if parts else ""

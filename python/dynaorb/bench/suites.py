@@ -163,8 +163,8 @@ def select(suite: Suite, only: tuple[str, ...] | None = None, presets: tuple[str
             if not hits:
                 why = [n["reason"] for n in suite.not_run if n["what"] in (name, name.split(":")[0])]
                 raise SelectionError(f"suite {suite.name} has no sequence {name!r}"
-                                 + (f" to run ({why[0]})" if why else
-                                    f" (it has: {', '.join(s.key for s in sequences)})"))
+                                     + (f" to run ({why[0]})" if why else
+                                        f" (it has: {', '.join(s.key for s in sequences)})"))
             keep += [s for s in hits if s not in keep]
         sequences = [s for s in sequences if s in keep]
     cases = [c for c in suite.cases if c.sequence in sequences]
@@ -173,10 +173,12 @@ def select(suite: Suite, only: tuple[str, ...] | None = None, presets: tuple[str
         unknown = [p for p in presets if p not in have]
         if unknown:
             raise SelectionError(f"no case of the selected sequences runs preset(s) {', '.join(unknown)} "
-                             f"(they run: {', '.join(sorted(have))})")
+                                 f"(they run: {', '.join(sorted(have))})")
         cases = [c for c in cases if c.preset == "off" or c.preset in presets]
-    keys = {s.key for s in sequences}
-    not_run = [n for n in suite.not_run if not only or any(n["what"].startswith(k) for k in keys)]
+    # What is said about the clips kept, and about the names asked for (a sensor the data lacks).
+    names = {s.key for s in sequences} | set(only or ())
+    not_run = [n for n in suite.not_run
+               if not only or any(n["what"] == k or n["what"].startswith(k + ":") for k in names)]
     return Suite(suite.name, cases, sequences, not_run)
 
 
