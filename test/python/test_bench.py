@@ -376,13 +376,15 @@ def test_pair_table_counts_the_labels_time_of_the_tracking_thread(tmp_path):
 
 def test_ms_ratios_pair_each_run_with_the_peer_run_made_beside_it():
     # The machine got faster between the runs: ours 40 -> 20 ms, the peer's 50 -> 25. Run by run ours is
-    # 0.80x both times; the medians (30 / 37.5) say the same, but not what each pair measured.
+    # 0.80x both times. The ratio of the medians says 1.00 (30 / 30): the peer's third run, beside our
+    # failed one, is in its median.
     records = [_record("s:stereo:full", "dynaorb", "full", 0.02, 40.0, 0), _record("s:stereo:full", "dynaorb", "full", 0.02, 20.0, 1),
                _record("s:stereo:orbslam3", "orbslam3", "off", 0.01, 25.0, 1), _record("s:stereo:orbslam3", "orbslam3", "off", 0.01, 50.0, 0),
                {**_record("s:stereo:full", "dynaorb", "full", None, 1.0, 2), "error": "died"},
                _record("s:stereo:orbslam3", "orbslam3", "off", 0.01, 30.0, 2)]
     p = report.pairs(report.aggregate(records), "full", records)[0]
     assert p["ms_ratio_runs"] == pytest.approx([0.8, 0.8])  # in run order; run 2 failed on our side
+    assert p["ms_ratio"] == pytest.approx(1.0)
     assert "| 0.80 / 0.80 |" in "\n".join(report.pair_table([p]))
     # The labels' time counts as in the medians; without the records no run-by-run figure.
     records[0] = {**records[0], "track_call_plus_labels_ms_median": 45.0}
