@@ -60,8 +60,7 @@ def aggregate(records: list[dict]) -> list[dict]:
             # The tracking thread's time for a frame's labels (a network behind the
             # camera), and the track call with them: what the pair table compares.
             "labels_ms_median": _median(r.get("labels_ms_median") for r in ok),
-            "thread_ms_median": _median((r.get("track_call_plus_labels_ms_median") or r.get("track_call_ms_median"))
-                                        for r in ok),
+            "thread_ms_median": _median(_thread_ms(r) for r in ok),
             "fps": _median(r.get("fps") for r in ok),
             "peak_rss_mb": _median(r.get("peak_rss_mb") for r in runs),
             "stage_ms_median": {k: statistics.median(v) for k, v in stage.items()},

@@ -178,6 +178,7 @@ def cmd_bench(args) -> int:
         return 2
     if args.suite in ("quick", "full", "long"):
         from dynaorb.bench.suite_runner import BenchOptions, run_suite
+        from dynaorb.bench.seeds import parse_list
         from dynaorb.bench.suites import SelectionError
         from dynaorb.runner.pacing import Pacer
 
@@ -191,7 +192,8 @@ def cmd_bench(args) -> int:
             run_suite(BenchOptions(suite=args.suite, out=args.out, runs=args.runs or 3, peer=not args.no_peer,
                                    peer_venv=args.peer_venv, segment_model=_bench_network(args),
                                    resume=args.resume, realtime=args.realtime, synth_root=args.synth_root,
-                                   only=_comma_list(args.only), presets=_comma_list(args.presets)))
+                                   only=parse_list(args.only or "") or None,
+                                   presets=parse_list(args.presets or "") or None))
         except SelectionError as exc:  # --only / --presets naming what the suite does not have
             print(f"dynaorb bench: {exc}", file=sys.stderr)
             return 2
@@ -217,11 +219,6 @@ def cmd_bench(args) -> int:
         print((out / "seeds.md").read_text())
         return 0
     return _bench_segmentation(args)
-
-
-def _comma_list(text: str | None) -> tuple[str, ...] | None:
-    items = tuple(x.strip() for x in (text or "").split(",") if x.strip())
-    return items or None
 
 
 def _model_folders(args) -> list[pathlib.Path]:
