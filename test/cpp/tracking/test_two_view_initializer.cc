@@ -292,6 +292,37 @@ TEST(TwoViewInitializer, TooFewMatchesFailsCleanly) {
   EXPECT_FALSE(rn.reason.empty());
 }
 
+TEST(TwoViewInitializer, NonFiniteKeypointsGiveNoModelAndNoCrash) {
+  const Scene s = make_scene(13, 300, false, kGeneralR, kGeneralT, 0.5);
+  two_view::Correspondences c;
+  for (const auto& [i1, i2] : s.matches) {
+    c.x1.push_back(s.ref[i1]);
+    c.x2.push_back(s.cur[i2]);
+    c.w1.push_back(1);
+    c.w2.push_back(1);
+  }
+  c.x1[0] = {std::nan(""), 100};
+  // The minimal models through the bad point are not models: neither comes out usable
+  // (finite and non-zero), and a RANSAC whose every sample holds it finds nothing.
+  std::vector<Eigen::Vector2d> x1(c.x1.begin(), c.x1.begin() + 8), x2(c.x2.begin(), c.x2.begin() + 8);
+  const Eigen::Matrix3d F = two_view::fundamental_8point(x1, x2);
+  const Eigen::Matrix3d H = two_view::homography_dlt(x1, x2);
+  EXPECT_FALSE(F.allFinite() && F.norm() > 0);
+  EXPECT_FALSE(H.allFinite() && H.norm() > 0);
+  std::vector<std::vector<int>> samples(20);
+  for (int k = 0; k < 20; ++k)
+    for (int j = 0; j < 8; ++j) samples[k].push_back(j == 0 ? 0 : 1 + k * 7 + j);
+  Eigen::Matrix3d model;
+  EXPECT_EQ(two_view::ransac_fundamental(c, samples, TwoViewOptions(), model).n_inliers, 0);
+  EXPECT_EQ(two_view::ransac_homography(c, samples, TwoViewOptions(), model).n_inliers, 0);
+  // The initialiser refuses such input before any model, naming it.
+  Scene bad = s;
+  bad.ref[bad.matches[0].first] = {std::nan(""), 100};
+  const TwoViewResult r = run(bad);
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.reason.find("non-finite keypoint"), std::string::npos) << r.reason;
+}
+
 TEST(TwoViewInitializer, PointsMatchGroundTruthUpToScale) {
   for (bool planar : {false, true}) {
     const Scene s = planar ? make_scene(11, 300, true, kPlanarR, kPlanarT, 0.5)
