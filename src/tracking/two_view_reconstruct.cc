@@ -111,14 +111,21 @@ bool triangulate(const Eigen::Vector2d& xn1, const Eigen::Vector2d& xn2, const E
 }
 
 MotionCheck check_motion(const Motion& m, const Eigen::Matrix3d& K, const Correspondences& c,
-                         const std::vector<bool>& inliers, double reproj_chi2) {
+                         const std::vector<bool>& inliers, double reproj_chi2, int give_up_at) {
   MotionCheck out;
   out.points.assign(c.size(), Eigen::Vector3d::Zero());
   out.triangulated.assign(c.size(), false);
   const Eigen::Matrix3d Kinv = K.inverse();
   const Eigen::Vector3d O2 = -m.R.transpose() * m.t;  // current camera centre, reference frame
+  int left = 0;  // inliers not yet checked
+  for (int i = 0; i < c.size(); ++i) left += inliers[i] ? 1 : 0;
   for (int i = 0; i < c.size(); ++i) {
     if (!inliers[i]) continue;
+    if (out.n_good + left <= give_up_at) {
+      out.abandoned = true;
+      break;
+    }
+    --left;
     const Eigen::Vector2d xn1 = (Kinv * c.x1[i].homogeneous()).hnormalized();
     const Eigen::Vector2d xn2 = (Kinv * c.x2[i].homogeneous()).hnormalized();
     Eigen::Vector3d X1;
@@ -149,10 +156,21 @@ void select_motion(const std::vector<Motion>& hypotheses, const Eigen::Matrix3d&
     out.reason = "no motion hypothesis";
     return;
   }
+  // A hypothesis is the winner only with more good points than every one
+  // before it, and counts against the winner only with more than
+  // clear_winner_ratio of its good points: one that can no longer have more
+  // than the smaller of the two bounds of the best so far is left unfinished
+  // (most wrong hypotheses put points behind a camera early). The outcome is
+  // the same as checking every hypothesis to the end.
   std::vector<MotionCheck> checks;
   int best = 0;
   for (const Motion& m : hypotheses) {
-    checks.push_back(check_motion(m, K, c, model.inliers, o.reproj_chi2));
+    int give_up_at = -1;
+    if (!checks.empty()) {
+      const double b = checks[best].n_good;
+      give_up_at = static_cast<int>(std::floor(std::min(b, o.clear_winner_ratio * b)));
+    }
+    checks.push_back(check_motion(m, K, c, model.inliers, o.reproj_chi2, give_up_at));
     if (checks.back().n_good > checks[best].n_good) best = static_cast<int>(checks.size()) - 1;
   }
   MotionCheck& win = checks[best];

@@ -194,9 +194,12 @@ struct MotionCheck {
   std::vector<Eigen::Vector3d> points;  // per correspondence; zero where not triangulated
   std::vector<bool> triangulated;       // good and parallax above ~0.36 deg
   std::vector<double> parallax_deg;     // of the good points
+  bool abandoned = false;               // stopped at give_up_at: n_good and the rest partial
 };
+// give_up_at >= 0: stop as soon as n_good plus the inliers still to check is at
+// most give_up_at (the hypothesis can no longer have more good points than that).
 MotionCheck check_motion(const Motion& m, const Eigen::Matrix3d& K, const Correspondences& c,
-                         const std::vector<bool>& inliers, double reproj_chi2);
+                         const std::vector<bool>& inliers, double reproj_chi2, int give_up_at = -1);
 
 // Checks every hypothesis and accepts the clear winner (ok, R_cr, t_cr, points,
 // triangulated, n_good, median_parallax_deg and reason of out are set).

@@ -268,6 +268,86 @@ TEST(TwoViewInitializer, CheckMotionRejectsInconsistentMatches) {
   EXPECT_EQ(mc.n_good, static_cast<int>(mc.parallax_deg.size()));
 }
 
+// select_motion leaves a hypothesis unfinished once it can no longer win or
+// count against the winner: the outcome must be what checking every
+// hypothesis to the end gives (winner, points, the clear-winner refusal).
+TEST(TwoViewInitializer, UnfinishedHypothesesDoNotChangeTheChoice) {
+  struct Case {
+    unsigned seed;
+    bool planar;
+    Eigen::Matrix3d R;
+    Eigen::Vector3d t;
+  };
+  const std::vector<Case> cases = {{31, true, kPlanarR, kPlanarT},
+                                   {17, true, kPlanarR, {-0.3, 0.1, 0.15}},  // no clear winner
+                                   {32, false, kGeneralR, kGeneralT},
+                                   {33, false, rot(1, {0, 1, 0}), {0.05, 0, 0}}};
+  int abandoned = 0, clear_winner_refused = 0;
+  for (const Case& k : cases) {
+    const Scene s = make_scene(k.seed, 300, k.planar, k.R, k.t, 0.5, 0.1);
+    two_view::Correspondences c;
+    for (const auto& [i1, i2] : s.matches) {
+      c.x1.push_back(s.ref[i1]);
+      c.x2.push_back(s.cur[i2]);
+      c.w1.push_back(1);
+      c.w2.push_back(1);
+    }
+    two_view::ModelScore model;
+    model.inliers.assign(c.size(), true);
+    for (size_t i = 0; i < s.outlier.size(); ++i) model.inliers[i] = !s.outlier[i];
+    model.n_inliers = count(model.inliers);
+    Eigen::Matrix3d tx;  // [t]x: E = [t]x R in normalised coordinates
+    tx << 0, -k.t.z(), k.t.y(), k.t.z(), 0, -k.t.x(), -k.t.y(), k.t.x(), 0;
+    std::vector<two_view::Motion> hyps;
+    if (k.planar) {
+      const Eigen::Vector3d n = Eigen::Vector3d(-0.3, 0.2, 1).normalized();
+      hyps = two_view::decompose_homography(s.K * (k.R + k.t * n.transpose() / 4.0) * s.K.inverse(), s.K);
+    } else {
+      hyps = two_view::decompose_essential(tx * k.R);
+    }
+    ASSERT_FALSE(hyps.empty());
+    const TwoViewOptions o;
+    // Every order of the hypotheses (rotations of the list): which ones are
+    // left unfinished depends on the best one before them.
+    for (size_t shift = 0; shift < hyps.size(); ++shift) {
+      std::rotate(hyps.begin(), hyps.begin() + 1, hyps.end());
+      // Every hypothesis to the end.
+      std::vector<two_view::MotionCheck> full;
+      int best = 0;
+      for (const auto& m : hyps) {
+        full.push_back(two_view::check_motion(m, s.K, c, model.inliers, o.reproj_chi2));
+        EXPECT_FALSE(full.back().abandoned);
+        if (full.back().n_good > full[best].n_good) best = static_cast<int>(full.size()) - 1;
+      }
+      int similar = 0;
+      for (const auto& mc : full) similar += mc.n_good > o.clear_winner_ratio * full[best].n_good;
+      for (size_t h = 0; h < hyps.size(); ++h) {
+        const int give_up_at = static_cast<int>(std::floor(o.clear_winner_ratio * full[best].n_good));
+        const auto part = two_view::check_motion(hyps[h], s.K, c, model.inliers, o.reproj_chi2, give_up_at);
+        if (full[h].n_good > give_up_at) {
+          EXPECT_FALSE(part.abandoned);
+          EXPECT_EQ(part.n_good, full[h].n_good);
+        } else if (part.abandoned) {
+          EXPECT_LE(part.n_good, give_up_at);
+          ++abandoned;
+        }
+      }
+      TwoViewResult r;
+      two_view::select_motion(hyps, s.K, c, model, o, r);
+      EXPECT_EQ(r.n_good, full[best].n_good);
+      EXPECT_EQ(r.reason.find("no clear winner") != std::string::npos, similar > 1) << r.reason;
+      clear_winner_refused += similar > 1;
+      if (r.ok) {
+        EXPECT_TRUE(r.R_cr.isApprox(hyps[best].R));
+        EXPECT_TRUE(r.t_cr.isApprox(hyps[best].t));
+        EXPECT_EQ(r.triangulated, full[best].triangulated);
+      }
+    }
+  }
+  EXPECT_GT(clear_winner_refused, 0);  // the ambiguous plane, in every order
+  EXPECT_GT(abandoned, 0);  // wrong hypotheses do stop early
+}
+
 TEST(TwoViewInitializer, TooFewMatchesFailsCleanly) {
   const Scene s = make_scene(9, 300, false, rot(5, {0, 1, 0}), {0.5, 0, 0}, 0.5);
   for (int n : {0, 5, 8, 30, 49}) {
