@@ -107,7 +107,7 @@ bool triangulate(const Eigen::Vector2d& xn1, const Eigen::Vector2d& xn2, const E
   P1.leftCols<3>().setIdentity();
   P2.leftCols<3>() = R;
   P2.col(3) = t;
-  return triangulate_dlt(xn1, P1, xn2, P2, X);
+  return triangulate_dlt_unit_baseline(xn1, P1, xn2, P2, X);  // |t| = 1 (decompose_*)
 }
 
 MotionCheck check_motion(const Motion& m, const Eigen::Matrix3d& K, const Correspondences& c,

@@ -2,6 +2,7 @@
 // Linear (DLT) triangulation of one point seen by two cameras (Hartley &
 // Zisserman, Sec. 12.2): the mapper's new points and the two-view initialiser.
 #include <Eigen/Core>
+#include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
 #include <cmath>
 
@@ -20,6 +21,31 @@ inline bool triangulate_dlt(const Eigen::Vector2d& x1, const Eigen::Matrix<doubl
   A.row(3) = x2.y() * P2.row(2) - P2.row(1);
   Eigen::JacobiSVD<Eigen::Matrix4d> svd(A, Eigen::ComputeFullV);
   const Eigen::Vector4d h = svd.matrixV().col(3);  // unit norm
+  if (!(std::abs(h(3)) > 1e-12)) return false;
+  X = h.head<3>() / h(3);
+  return X.allFinite();
+}
+
+// The same least-squares point from the eigenvector of A^T A with the
+// smallest eigenvalue (a self-adjoint 4x4 solve) instead of A's SVD: about
+// half the time, but A^T A squares A's condition. Only for cameras of the
+// two-view initialiser's scale, the reference one at the origin and a unit
+// baseline (on such points the two agree to 1e-8 of the point's distance
+// down to parallaxes of 0.01 degree); the mapper's cameras, metres from the
+// world origin, keep the SVD.
+inline bool triangulate_dlt_unit_baseline(const Eigen::Vector2d& x1, const Eigen::Matrix<double, 3, 4>& P1,
+                                          const Eigen::Vector2d& x2, const Eigen::Matrix<double, 3, 4>& P2,
+                                          Eigen::Vector3d& X) {
+  Eigen::Matrix4d A;
+  A.row(0) = x1.x() * P1.row(2) - P1.row(0);
+  A.row(1) = x1.y() * P1.row(2) - P1.row(1);
+  A.row(2) = x2.x() * P2.row(2) - P2.row(0);
+  A.row(3) = x2.y() * P2.row(2) - P2.row(1);
+  const Eigen::Matrix4d M = A.transpose() * A;
+  if (!M.allFinite()) return false;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> es(M);
+  if (es.info() != Eigen::Success) return false;
+  const Eigen::Vector4d h = es.eigenvectors().col(0);  // unit norm, smallest eigenvalue first
   if (!(std::abs(h(3)) > 1e-12)) return false;
   X = h.head<3>() / h(3);
   return X.allFinite();

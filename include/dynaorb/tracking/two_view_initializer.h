@@ -183,7 +183,8 @@ std::vector<Motion> decompose_homography(const Eigen::Matrix3d& H21, const Eigen
 std::vector<Motion> decompose_essential(const Eigen::Matrix3d& E21);
 
 // Linear (DLT) triangulation from normalised image coordinates (K^-1 x) of the reference
-// camera [I|0] and the current one [R|t]; false when the point is at infinity.
+// camera [I|0] and the current one [R|t], |t| = 1 as the hypotheses have it (solved on
+// the normal equations: core/triangulation.h); false when the point is at infinity.
 bool triangulate(const Eigen::Vector2d& xn1, const Eigen::Vector2d& xn2,
                  const Eigen::Matrix3d& R, const Eigen::Vector3d& t, Eigen::Vector3d& X);
 
