@@ -307,8 +307,8 @@ TEST(TwoViewInitializer, UnfinishedHypothesesDoNotChangeTheChoice) {
     }
     ASSERT_FALSE(hyps.empty());
     const TwoViewOptions o;
-    // Every order of the hypotheses (rotations of the list): which ones are
-    // left unfinished depends on the best one before them.
+    // Each rotation of the hypotheses' order (every hypothesis comes first
+    // once): which ones are left unfinished depends on the best one before them.
     for (size_t shift = 0; shift < hyps.size(); ++shift) {
       std::rotate(hyps.begin(), hyps.begin() + 1, hyps.end());
       // Every hypothesis to the end.
