@@ -19,6 +19,9 @@ inline bool triangulate_dlt(const Eigen::Vector2d& x1, const Eigen::Matrix<doubl
   A.row(1) = x1.y() * P1.row(2) - P1.row(1);
   A.row(2) = x2.x() * P2.row(2) - P2.row(0);
   A.row(3) = x2.y() * P2.row(2) - P2.row(1);
+  // A NaN does not stop Jacobi's sweeps (its comparisons are false): the SVD
+  // of such an A can come back finite, and a point from nothing.
+  if (!A.allFinite()) return false;
   Eigen::JacobiSVD<Eigen::Matrix4d> svd(A, Eigen::ComputeFullV);
   const Eigen::Vector4d h = svd.matrixV().col(3);  // unit norm
   if (!(std::abs(h(3)) > 1e-12)) return false;
