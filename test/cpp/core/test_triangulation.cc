@@ -40,7 +40,7 @@ TEST(Triangulation, NormalEquationsAgreeWithTheSvdAtUnitBaseline) {
     const P34 P2 = camera(R, t);
     const Eigen::Vector2d x1 = (P1 * Xw.homogeneous()).hnormalized() + Eigen::Vector2d(noise(rng), noise(rng));
     const Eigen::Vector2d x2 = (P2 * Xw.homogeneous()).hnormalized() + Eigen::Vector2d(noise(rng), noise(rng));
-    Eigen::Vector3d a, b;
+    Eigen::Vector3d a = Eigen::Vector3d::Zero(), b = Eigen::Vector3d::Zero();
     const bool ok_a = dynaorb::triangulate_dlt(x1, P1, x2, P2, a);
     const bool ok_b = dynaorb::triangulate_dlt_unit_baseline(x1, P1, x2, P2, b);
     ASSERT_EQ(ok_a, ok_b) << i;

@@ -105,6 +105,18 @@ double direction_error_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
 
 int count(const std::vector<bool>& v) { return static_cast<int>(std::count(v.begin(), v.end(), true)); }
 
+// The scene's matches as the initialiser's correspondences, unit weights.
+two_view::Correspondences correspondences(const Scene& s) {
+  two_view::Correspondences c;
+  for (const auto& [i1, i2] : s.matches) {
+    c.x1.push_back(s.ref[i1]);
+    c.x2.push_back(s.cur[i2]);
+    c.w1.push_back(1);
+    c.w2.push_back(1);
+  }
+  return c;
+}
+
 TwoViewResult run(const Scene& s, const TwoViewOptions& o = {}) {
   return TwoViewInitializer(o).initialize(s.K, s.ref, s.cur, s.matches);
 }
@@ -249,13 +261,7 @@ TEST(TwoViewInitializer, CheckMotionRejectsInconsistentMatches) {
   // All matches offered as inliers under the true motion: the gross outliers must fail the
   // depth / reprojection tests, the others pass.
   const Scene s = make_scene(19, 300, false, kGeneralR, kGeneralT, 0.5, 0.3);
-  two_view::Correspondences c;
-  for (const auto& [i1, i2] : s.matches) {
-    c.x1.push_back(s.ref[i1]);
-    c.x2.push_back(s.cur[i2]);
-    c.w1.push_back(1);
-    c.w2.push_back(1);
-  }
+  const two_view::Correspondences c = correspondences(s);
   two_view::Motion m;
   m.R = s.R;
   m.t = s.t.normalized();
@@ -285,13 +291,7 @@ TEST(TwoViewInitializer, UnfinishedHypothesesDoNotChangeTheChoice) {
   int abandoned = 0, clear_winner_refused = 0;
   for (const Case& k : cases) {
     const Scene s = make_scene(k.seed, 300, k.planar, k.R, k.t, 0.5, 0.1);
-    two_view::Correspondences c;
-    for (const auto& [i1, i2] : s.matches) {
-      c.x1.push_back(s.ref[i1]);
-      c.x2.push_back(s.cur[i2]);
-      c.w1.push_back(1);
-      c.w2.push_back(1);
-    }
+    const two_view::Correspondences c = correspondences(s);
     two_view::ModelScore model;
     model.inliers.assign(c.size(), true);
     for (size_t i = 0; i < s.outlier.size(); ++i) model.inliers[i] = !s.outlier[i];
@@ -374,13 +374,7 @@ TEST(TwoViewInitializer, TooFewMatchesFailsCleanly) {
 
 TEST(TwoViewInitializer, NonFiniteKeypointsGiveNoModelAndNoCrash) {
   const Scene s = make_scene(13, 300, false, kGeneralR, kGeneralT, 0.5);
-  two_view::Correspondences c;
-  for (const auto& [i1, i2] : s.matches) {
-    c.x1.push_back(s.ref[i1]);
-    c.x2.push_back(s.cur[i2]);
-    c.w1.push_back(1);
-    c.w2.push_back(1);
-  }
+  two_view::Correspondences c = correspondences(s);
   c.x1[0] = {std::nan(""), 100};
   // The minimal models through the bad point are not models: neither comes out usable
   // (finite and non-zero), and a RANSAC whose every sample holds it finds nothing.
