@@ -69,6 +69,14 @@ inline bool add_score(double d2, double chi2, double gamma, double& score) {
 
 bool finite(const Eigen::Matrix3d& M) { return M.allFinite() && M.norm() > 0; }
 
+// Whether a score of `score` after `done` of n correspondences can no longer exceed
+// must_beat: each of the others adds at most 2 gamma (gamma - d^2 per image, d^2 >= 0).
+// The margin (far above the sums' rounding) keeps every model that could still win.
+inline bool cannot_win(double score, int done, int n, double gamma, double must_beat) {
+  const double bound = score + 2.0 * gamma * static_cast<double>(n - done);
+  return bound < must_beat - 1e-9 * std::max(1.0, std::abs(must_beat));
+}
+
 template <typename Fit, typename Score>
 ModelScore ransac(const Correspondences& c, const std::vector<std::vector<int>>& samples,
                   int sample_size, Fit fit, Score score, Eigen::Matrix3d& model) {
@@ -78,7 +86,7 @@ ModelScore ransac(const Correspondences& c, const std::vector<std::vector<int>>&
   for (const auto& s : samples) {
     const Eigen::Matrix3d M = fit(pick(c.x1, s, sample_size), pick(c.x2, s, sample_size));
     if (!finite(M)) continue;
-    ModelScore cur = score(M);
+    ModelScore cur = score(M, best.score);
     if (cur.score > best.score) {
       best = std::move(cur);
       model = M;
@@ -174,12 +182,13 @@ Eigen::Matrix3d fundamental_8point(const std::vector<Eigen::Vector2d>& x1,
 }
 
 ModelScore score_homography(const Eigen::Matrix3d& H21, const Correspondences& c, double chi2,
-                            double gamma) {
+                            double gamma, double must_beat) {
   ModelScore out;
   out.inliers.assign(c.size(), false);
   const Eigen::Matrix3d H12 = H21.inverse();
   if (!H12.allFinite()) return out;
   for (int i = 0; i < c.size(); ++i) {
+    if (cannot_win(out.score, i, c.size(), gamma, must_beat)) break;
     // Transfer error in the current image (x1 -> x2) and in the reference one (x2 -> x1).
     const Eigen::Vector3d p2 = H21 * c.x1[i].homogeneous();
     const Eigen::Vector3d p1 = H12 * c.x2[i].homogeneous();
@@ -196,10 +205,11 @@ ModelScore score_homography(const Eigen::Matrix3d& H21, const Correspondences& c
 }
 
 ModelScore score_fundamental(const Eigen::Matrix3d& F21, const Correspondences& c, double chi2,
-                             double gamma) {
+                             double gamma, double must_beat) {
   ModelScore out;
   out.inliers.assign(c.size(), false);
   for (int i = 0; i < c.size(); ++i) {
+    if (cannot_win(out.score, i, c.size(), gamma, must_beat)) break;
     const Eigen::Vector3d x1 = c.x1[i].homogeneous(), x2 = c.x2[i].homogeneous();
     // Distance of x2 to the epipolar line F x1, and of x1 to F^T x2.
     const Eigen::Vector3d l2 = F21 * x1, l1 = F21.transpose() * x2;
@@ -221,7 +231,9 @@ ModelScore ransac_homography(const Correspondences& c, const std::vector<std::ve
   const int k = std::min(std::max(o.homography_sample, 4), 8);
   return ransac(
       c, samples, k, homography_dlt,
-      [&](const Eigen::Matrix3d& H) { return score_homography(H, c, o.chi2_h, o.score_gamma); },
+      [&](const Eigen::Matrix3d& H, double must_beat) {
+        return score_homography(H, c, o.chi2_h, o.score_gamma, must_beat);
+      },
       model);
 }
 
@@ -230,7 +242,9 @@ ModelScore ransac_fundamental(const Correspondences& c,
                               const TwoViewOptions& o, Eigen::Matrix3d& model) {
   return ransac(
       c, samples, 8, fundamental_8point,
-      [&](const Eigen::Matrix3d& F) { return score_fundamental(F, c, o.chi2_f, o.score_gamma); },
+      [&](const Eigen::Matrix3d& F, double must_beat) {
+        return score_fundamental(F, c, o.chi2_f, o.score_gamma, must_beat);
+      },
       model);
 }
 

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <string>
 #include <utility>
+#include <limits>
 #include <vector>
 
 namespace dynaorb::tracking {
@@ -148,10 +149,15 @@ struct ModelScore {
 };
 
 // Symmetric transfer errors (H: point to point; F: point to epipolar line) in both images.
+// must_beat: scoring stops once the score can no longer exceed it (each correspondence adds
+// at most 2 gamma); the score returned is then below must_beat and its inliers incomplete.
+// A model that can still exceed it is scored to the end, to the same result as without it.
+// RANSAC passes its best score so far: the same winner as scoring every sample set's model
+// to the end.
 ModelScore score_homography(const Eigen::Matrix3d& H21, const Correspondences& c, double chi2,
-                            double gamma);
+                            double gamma, double must_beat = -std::numeric_limits<double>::infinity());
 ModelScore score_fundamental(const Eigen::Matrix3d& F21, const Correspondences& c, double chi2,
-                             double gamma);
+                             double gamma, double must_beat = -std::numeric_limits<double>::infinity());
 
 // RANSAC over the given sample sets (indices into c, 8 each; H takes the first
 // o.homography_sample of them); model = the best minimal-set model. Score 0 when none fits.

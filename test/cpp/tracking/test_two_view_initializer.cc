@@ -8,6 +8,8 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <numeric>
 #include <random>
 #include <vector>
 
@@ -346,6 +348,76 @@ TEST(TwoViewInitializer, UnfinishedHypothesesDoNotChangeTheChoice) {
   }
   EXPECT_GT(clear_winner_refused, 0);  // the ambiguous plane, in every order
   EXPECT_GT(abandoned, 0);  // wrong hypotheses do stop early
+}
+
+// RANSAC stops scoring a sample set's model once it can no longer beat the
+// best so far: the same winner, score and inliers as scoring every model to
+// the end (a loop over the same sample sets here), for H and F, on planar and
+// general scenes with outliers; and a model that can still win is scored to
+// the end.
+TEST(TwoViewInitializer, ScoringStopsOnlyForModelsThatCannotWin) {
+  const TwoViewOptions o;
+  int stopped = 0;
+  for (const auto& [seed, planar] : std::vector<std::pair<unsigned, bool>>{{41, true}, {42, false}, {43, false}}) {
+    const Scene s = make_scene(seed, 300, planar, planar ? kPlanarR : kGeneralR, planar ? kPlanarT : kGeneralT, 0.7,
+                               planar ? 0.2 : 0.35);
+    const two_view::Correspondences c = correspondences(s);
+    std::mt19937 rng(seed);
+    std::vector<std::vector<int>> samples(200);
+    std::vector<int> all(c.size());
+    std::iota(all.begin(), all.end(), 0);
+    for (auto& smp : samples) {
+      std::shuffle(all.begin(), all.end(), rng);
+      smp.assign(all.begin(), all.begin() + 8);
+    }
+    for (const bool homography : {true, false}) {
+      const double chi2 = homography ? o.chi2_h : o.chi2_f;
+      const auto fit = [&](const std::vector<int>& smp) {
+        std::vector<Eigen::Vector2d> x1, x2;
+        const int k = homography ? std::min(std::max(o.homography_sample, 4), 8) : 8;
+        for (int i = 0; i < k; ++i) {
+          x1.push_back(c.x1[smp[i]]);
+          x2.push_back(c.x2[smp[i]]);
+        }
+        return homography ? two_view::homography_dlt(x1, x2) : two_view::fundamental_8point(x1, x2);
+      };
+      const auto score = [&](const Eigen::Matrix3d& M, double must_beat) {
+        return homography ? two_view::score_homography(M, c, chi2, o.score_gamma, must_beat)
+                          : two_view::score_fundamental(M, c, chi2, o.score_gamma, must_beat);
+      };
+      // Every model to the end.
+      two_view::ModelScore best;
+      Eigen::Matrix3d best_model = Eigen::Matrix3d::Zero();
+      for (const auto& smp : samples) {
+        const Eigen::Matrix3d M = fit(smp);
+        if (!M.allFinite() || M.norm() == 0) continue;
+        const two_view::ModelScore full = score(M, -std::numeric_limits<double>::infinity());
+        // With a bound: scored to the end while it can exceed it, below it when stopped.
+        for (const double bound : {0.5 * full.score, full.score - 1e-6, full.score, 1.5 * full.score + 1}) {
+          const two_view::ModelScore part = score(M, bound);
+          if (full.score > bound) {
+            EXPECT_EQ(part.score, full.score);
+            EXPECT_EQ(part.inliers, full.inliers);
+          } else {
+            EXPECT_LE(part.score, bound);
+            stopped += part.n_inliers < full.n_inliers;
+          }
+        }
+        if (full.score > best.score) {
+          best = full;
+          best_model = M;
+        }
+      }
+      Eigen::Matrix3d model;
+      const two_view::ModelScore r = homography ? two_view::ransac_homography(c, samples, o, model)
+                                                : two_view::ransac_fundamental(c, samples, o, model);
+      EXPECT_GT(best.n_inliers, 0);
+      EXPECT_EQ(r.score, best.score);
+      EXPECT_EQ(r.inliers, best.inliers);
+      EXPECT_EQ(model, best_model);
+    }
+  }
+  EXPECT_GT(stopped, 0);  // models that cannot win do stop early
 }
 
 TEST(TwoViewInitializer, TooFewMatchesFailsCleanly) {
