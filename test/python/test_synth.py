@@ -30,6 +30,18 @@ def test_deterministic_per_seed(tmp_path, data):
     assert digest(tmp_path / "a") != digest(tmp_path / "c")
 
 
+def test_frames_rendered_at_once_give_the_same_files(tmp_path, data):
+    """The frames render on a thread each (one per core by default): the same images,
+    labels, masks and poses as one frame at a time, for each layout."""
+    small = dict(movers=3, frames=6, width=160, height=120, fx=131.25, seed=2)
+    for sensor in ("mono", "stereo", "rgbd"):
+        one = generate(tmp_path / f"{sensor}1", SynthConfig(sensor=sensor, **small), threads=1)
+        three = generate(tmp_path / f"{sensor}3", SynthConfig(sensor=sensor, **small), threads=3)
+        assert digest(tmp_path / f"{sensor}1") == digest(tmp_path / f"{sensor}3"), sensor
+        assert one["path_length_m"] == three["path_length_m"]
+        assert one["dynamic_pixel_fraction"] == three["dynamic_pixel_fraction"]
+
+
 def load_rgbd(seq, i):
     provider = core().open_dataset("tum", str(seq))
     frame = provider.load(i)

@@ -8,8 +8,10 @@ ORB-SLAM2 format and synth.json describing the scene. Deterministic per seed.
 """
 from __future__ import annotations
 
+import concurrent.futures
 import dataclasses
 import json
+import os
 import pathlib
 
 import cv2
@@ -90,8 +92,9 @@ class _Layout:
         return f"{stamp:.6f}.png" if self.tum else f"{i:06d}.png"
 
 
-def generate(out: str | pathlib.Path, config: SynthConfig, progress=None) -> dict:
-    """Renders the sequence into `out`; returns the summary written to synth.json."""
+def generate(out: str | pathlib.Path, config: SynthConfig, progress=None, threads: int | None = None) -> dict:
+    """Renders the sequence into `out`; returns the summary written to synth.json.
+    threads: frames rendered at once (None: one per core); the files are the same."""
     c = config
     if c.sensor not in SENSORS:
         raise ValueError(f"sensor must be one of {SENSORS}, not {c.sensor!r}")
@@ -118,11 +121,12 @@ def generate(out: str | pathlib.Path, config: SynthConfig, progress=None) -> dic
     T_right = np.eye(4)
     T_right[0, 3] = c.baseline
 
-    poses, stamps, dynamic_fraction = [], [], []
     labels_of_box = np.array([b.label for b in scene.boxes] + [0], np.uint8)  # index -1 -> 0
     t0 = 1_000_000.0 if layout.tum else 0.0  # TUM-like epoch stamps
-    frames = range(c.frames) if progress is None else progress(range(c.frames))
-    for i in frames:
+
+    def render_frame(i: int) -> tuple:
+        """Frame i's images written; (pose, stamp, dynamic pixel fraction). Reads the scene
+        only, and its noise comes from its own generator: frames render independently."""
         t = i / c.rate()
         stamp = t0 + t
         T_room_cam = scene.path.pose(t)
@@ -148,9 +152,20 @@ def generate(out: str | pathlib.Path, config: SynthConfig, progress=None) -> dic
                 cv2.imwrite(str(layout.seq / "image_1" / name), finish(right))
         cv2.imwrite(str(layout.seq / "labels" / name), labels)
         cv2.imwrite(str(layout.seq / "dynamic_masks" / name), dyn)
-        poses.append(T0_inv @ T_room_cam)
-        stamps.append(stamp)
-        dynamic_fraction.append(float(np.count_nonzero(dyn)) / dyn.size)
+        return T0_inv @ T_room_cam, stamp, float(np.count_nonzero(dyn)) / dyn.size
+
+    # Frames on a thread per core (NumPy's array operations and OpenCV's remap and PNG
+    # encoding release the GIL): the same files as one at a time, in about half the time
+    # on two cores.
+    poses, stamps, dynamic_fraction = [], [], []
+    workers = max(1, min(threads or os.cpu_count() or 1, c.frames))
+    with concurrent.futures.ThreadPoolExecutor(workers) as pool:
+        done = pool.map(render_frame, range(c.frames))
+        for _ in range(c.frames) if progress is None else progress(range(c.frames)):
+            pose, stamp, fraction = next(done)
+            poses.append(pose)
+            stamps.append(stamp)
+            dynamic_fraction.append(fraction)
 
     _write_index(layout, stamps, poses)
     (layout.seq / "settings.yaml").write_text(_settings_yaml(c, K))
