@@ -42,6 +42,26 @@ def test_frames_rendered_at_once_give_the_same_files(tmp_path, data):
         assert one["dynamic_pixel_fraction"] == three["dynamic_pixel_fraction"]
 
 
+def test_a_failing_frame_stops_the_rendering(tmp_path, monkeypatch):
+    """A frame that fails (a full disk, Ctrl-C) raises at once: the frames not started are
+    cancelled, only those being rendered finish."""
+    from dynaorb.synth.scene import Renderer
+
+    calls = []
+    render = Renderer.render
+
+    def failing(self, scene, T, t):
+        calls.append(t)
+        if len(calls) == 3:
+            raise RuntimeError("no space left on device")
+        return render(self, scene, T, t)
+
+    monkeypatch.setattr(Renderer, "render", failing)
+    with pytest.raises(RuntimeError, match="no space left"):
+        generate(tmp_path / "x", SynthConfig(sensor="mono", movers=0, frames=40, seed=1), threads=2)
+    assert len(calls) < 20, len(calls)
+
+
 def test_culled_boxes_render_the_same_image(data):
     """Testing each box against the rays around its projection only gives the image, depth
     and box index of testing every ray: rooms with movers (forward path) and the loop room,

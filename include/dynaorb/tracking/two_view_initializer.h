@@ -11,9 +11,9 @@
 // e.g. to median_depth() == 1. Plain data in and out, no map classes.
 #include <Eigen/Core>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <utility>
-#include <limits>
 #include <vector>
 
 namespace dynaorb::tracking {
@@ -150,7 +150,8 @@ struct ModelScore {
 
 // Symmetric transfer errors (H: point to point; F: point to epipolar line) in both images.
 // must_beat: scoring stops once the score can no longer exceed it (each correspondence adds
-// at most 2 gamma); the score returned is then below must_beat and its inliers incomplete.
+// at most 2 gamma, its weights being inverse variances, >= 0); the score returned is then
+// below must_beat and its inliers incomplete.
 // A model that can still exceed it is scored to the end, to the same result as without it.
 // RANSAC passes its best score so far: the same winner as scoring every sample set's model
 // to the end.

@@ -94,7 +94,7 @@ class _Layout:
 
 def generate(out: str | pathlib.Path, config: SynthConfig, progress=None, threads: int | None = None) -> dict:
     """Renders the sequence into `out`; returns the summary written to synth.json.
-    threads: frames rendered at once (None: one per core); the files are the same."""
+    threads: frames rendered at once (None or 0: one per core); the files are the same."""
     c = config
     if c.sensor not in SENSORS:
         raise ValueError(f"sensor must be one of {SENSORS}, not {c.sensor!r}")
@@ -157,15 +157,21 @@ def generate(out: str | pathlib.Path, config: SynthConfig, progress=None, thread
     # Frames on a thread per core (NumPy's array operations and OpenCV's remap and PNG
     # encoding release the GIL): the same files as one at a time, in about half the time
     # on two cores.
+    # A failure or Ctrl-C cancels the frames not started: only those being rendered finish.
     poses, stamps, dynamic_fraction = [], [], []
     workers = max(1, min(threads or os.cpu_count() or 1, c.frames))
     with concurrent.futures.ThreadPoolExecutor(workers) as pool:
-        done = pool.map(render_frame, range(c.frames))
-        for _ in range(c.frames) if progress is None else progress(range(c.frames)):
-            pose, stamp, fraction = next(done)
-            poses.append(pose)
-            stamps.append(stamp)
-            dynamic_fraction.append(fraction)
+        futures = [pool.submit(render_frame, i) for i in range(c.frames)]
+        try:
+            for i in range(c.frames) if progress is None else progress(range(c.frames)):
+                pose, stamp, fraction = futures[i].result()
+                poses.append(pose)
+                stamps.append(stamp)
+                dynamic_fraction.append(fraction)
+        except BaseException:
+            for f in futures:
+                f.cancel()
+            raise
 
     _write_index(layout, stamps, poses)
     (layout.seq / "settings.yaml").write_text(_settings_yaml(c, K))
