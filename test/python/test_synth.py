@@ -62,6 +62,17 @@ def test_a_failing_frame_stops_the_rendering(tmp_path, monkeypatch):
     assert len(calls) < 20, len(calls)
 
 
+def test_an_image_that_cannot_be_written_is_an_error(tmp_path, monkeypatch):
+    """cv2.imwrite answers a full disk with False: generate raises, naming the file, rather
+    than leaving a sequence with a frame missing."""
+    write = cv2.imwrite
+    monkeypatch.setattr(cv2, "imwrite", lambda path, img: False if path.endswith("labels/000003.png")
+                        else write(path, img))
+    with pytest.raises(OSError, match="labels/000003.png"):
+        generate(tmp_path / "x", SynthConfig(sensor="mono", movers=2, frames=8, width=160, height=120,
+                                             fx=131.25), threads=2)
+
+
 def test_culled_boxes_render_the_same_image(data):
     """Testing each box against the rays around its projection only gives the image, depth
     and box index of testing every ray: rooms with movers (forward path) and the loop room,

@@ -92,6 +92,13 @@ class _Layout:
         return f"{stamp:.6f}.png" if self.tum else f"{i:06d}.png"
 
 
+def _write(path: pathlib.Path, image: np.ndarray) -> None:
+    """cv2.imwrite, whose False (a full disk, a folder gone) would otherwise leave a hole
+    in the sequence unnoticed."""
+    if not cv2.imwrite(str(path), image):
+        raise OSError(f"could not write {path}")
+
+
 def generate(out: str | pathlib.Path, config: SynthConfig, progress=None, threads: int | None = None) -> dict:
     """Renders the sequence into `out`; returns the summary written to synth.json.
     threads: frames rendered at once (None or 0: one per core); the files are the same."""
@@ -142,16 +149,16 @@ def generate(out: str | pathlib.Path, config: SynthConfig, progress=None, thread
             return np.clip(img + 0.5, 0, 255).astype(np.uint8)
 
         if layout.tum:
-            cv2.imwrite(str(layout.seq / "rgb" / name), finish(image))
+            _write(layout.seq / "rgb" / name, finish(image))
             d16 = np.where(depth <= c.max_depth, np.round(depth * c.depth_factor), 0).astype(np.uint16)
-            cv2.imwrite(str(layout.seq / "depth" / name), d16)
+            _write(layout.seq / "depth" / name, d16)
         else:
-            cv2.imwrite(str(layout.seq / "image_0" / name), finish(image))
+            _write(layout.seq / "image_0" / name, finish(image))
             if c.sensor == "stereo":
                 right, _, _ = renderer.render(scene, T_room_cam @ T_right, t)
-                cv2.imwrite(str(layout.seq / "image_1" / name), finish(right))
-        cv2.imwrite(str(layout.seq / "labels" / name), labels)
-        cv2.imwrite(str(layout.seq / "dynamic_masks" / name), dyn)
+                _write(layout.seq / "image_1" / name, finish(right))
+        _write(layout.seq / "labels" / name, labels)
+        _write(layout.seq / "dynamic_masks" / name, dyn)
         return T0_inv @ T_room_cam, stamp, float(np.count_nonzero(dyn)) / dyn.size
 
     # Frames on a thread per core (NumPy's array operations and OpenCV's remap and PNG
