@@ -80,18 +80,13 @@ def test_culled_boxes_render_the_same_image(data):
     import importlib
 
     gen = importlib.import_module("dynaorb.synth.generate")
-    from dynaorb.synth.scene import Renderer, build_loop_scene, build_scene
-    from dynaorb.synth.textures import TextureBank, default_texture_dir
+    from dynaorb.synth.scene import Renderer
 
     culled_boxes = 0
     for seed, loop in ((0, False), (4, False), (1, True)):
         c = SynthConfig(sensor="mono", movers=0 if loop else 3, frames=40, seed=seed, width=320, height=240,
                         fx=262.5, path="loop" if loop else "forward")
-        rng = np.random.default_rng(seed)
-        bank = TextureBank(rng, default_texture_dir())
-        duration = (c.frames - 1) / c.rate()
-        scene = (build_loop_scene(bank, rng, duration=duration, colour=False) if loop
-                 else build_scene(bank, rng, movers=c.movers, duration=duration, colour=False))
+        scene, _ = gen._scene(c)  # the scene generate() renders
         K = gen._intrinsics(c)
         culled, every = Renderer(K, c.width, c.height), Renderer(K, c.width, c.height, cull=False)
         for i in range(0, c.frames, 6):

@@ -99,6 +99,19 @@ def _write(path: pathlib.Path, image: np.ndarray) -> None:
         raise OSError(f"could not write {path}")
 
 
+def _scene(c: SynthConfig):
+    """The room, path and movers of a configuration, and the texture bank they took their
+    textures from (deterministic per seed)."""
+    rng = np.random.default_rng(c.seed)
+    source = pathlib.Path(c.textures) if c.textures else default_texture_dir()
+    bank = TextureBank(rng, source)
+    duration = (c.frames - 1) / c.rate()
+    if c.path == "loop":
+        return build_loop_scene(bank, rng, duration=duration, colour=c.sensor == "rgbd", period=c.lap_period), bank
+    return build_scene(bank, rng, movers=c.movers, duration=duration, colour=c.sensor == "rgbd",
+                       long_room_bank=TextureBank(np.random.default_rng([c.seed, 1]), source)), bank
+
+
 def generate(out: str | pathlib.Path, config: SynthConfig, progress=None, threads: int | None = None) -> dict:
     """Renders the sequence into `out`; returns the summary written to synth.json.
     threads: frames rendered at once (None or 0: one per core); the files are the same."""
@@ -112,15 +125,8 @@ def generate(out: str | pathlib.Path, config: SynthConfig, progress=None, thread
     if c.path == "loop" and c.movers:
         raise ValueError("the loop path has no movers (movers=0)")
     out = pathlib.Path(out)
-    rng = np.random.default_rng(c.seed)
-    source = pathlib.Path(c.textures) if c.textures else default_texture_dir()
-    bank = TextureBank(rng, source)
-    duration = (c.frames - 1) / c.rate()
-    if c.path == "loop":
-        scene = build_loop_scene(bank, rng, duration=duration, colour=c.sensor == "rgbd", period=c.lap_period)
-    else:
-        scene = build_scene(bank, rng, movers=c.movers, duration=duration, colour=c.sensor == "rgbd",
-                            long_room_bank=TextureBank(np.random.default_rng([c.seed, 1]), source))
+    scene, bank = _scene(c)
+    duration = scene.duration
     K = _intrinsics(c)
     renderer = Renderer(K, c.width, c.height)
     layout = _Layout(out, c)
