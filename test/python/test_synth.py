@@ -99,6 +99,39 @@ def test_culled_boxes_render_the_same_image(data):
     assert culled_boxes > 0  # the small boxes were culled
 
 
+def test_boxes_reaching_behind_the_camera_are_culled_to_what_lies_in_front(data):
+    """A box with corners behind the camera is tested only against the rays around the
+    projection of its part in front: the room's wall behind the camera against none, the
+    floor against the rows below the horizon. Cameras 1-2 cm from the floor and from a wall,
+    looking along them and into them, see those surfaces from the nearest depths a hit
+    counts at, and render the image, depth and box index of testing every ray."""
+    import importlib
+
+    gen = importlib.import_module("dynaorb.synth.generate")
+    from dynaorb.synth.scene import FLOOR_Y, ROOM_HALF_WIDTH, Renderer, camera_pose
+
+    c = SynthConfig(sensor="mono", movers=3, frames=40, seed=2, width=160, height=120, fx=131.25)
+    scene, _ = gen._scene(c)
+    K = gen._intrinsics(c)
+    culled, every = Renderer(K, c.width, c.height), Renderer(K, c.width, c.height, cull=False)
+    box = {b.name: b for b in scene.boxes}
+    t = 1.0
+    T = scene.path.pose(t)
+    R, o = T[:3, :3], T[:3, 3]
+    assert culled._pixels_of(*box["wall_back"].corners(t), R, o).size == 0
+    floor = culled._pixels_of(*box["floor"].corners(t), R, o)
+    assert floor is not None and 0 < floor.size < c.width * c.height
+    assert floor.min() // c.width > c.height // 4  # rows below the horizon (and a little above it)
+    assert culled._pixels_of(*box["ceiling"].corners(t), R, o).max() // c.width < 3 * c.height // 4
+    near = [camera_pose(0.0, pitch, 0.0, (0.3, FLOOR_Y - 0.01, 2.0)) for pitch in (-0.8, -0.3, 0.0)]
+    near += [camera_pose(yaw, 0.0, 0.0, (-ROOM_HALF_WIDTH + 0.02, 0.5, 3.0)) for yaw in (-1.2, -0.5)]
+    for T in near:
+        for a, b in zip(culled.render(scene, T, t), every.render(scene, T, t)):
+            assert np.array_equal(a, b)
+        depth = culled.render(scene, T, t)[1]
+        assert depth.min() < 0.05  # the surface next to the camera is in view
+
+
 def load_rgbd(seq, i):
     provider = core().open_dataset("tum", str(seq))
     frame = provider.load(i)

@@ -264,10 +264,18 @@ def _sample(tex: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return out.reshape(rows * cols, -1)[:n].astype(np.float32)
 
 
+# Culling (Renderer._pixels_of): the camera depth the box is clipped at, half the
+# smallest depth render counts as a hit (1e-3 m), and the box's 12 edges as pairs of
+# corner indices (corner 4 i + 2 j + l has x from i, y from j, z from l).
+NEAR_CLIP = 5e-4
+_BOX_EDGES = [(k, k + step) for step in (4, 2, 1) for k in range(8) if not k & step]
+
+
 class Renderer:
     """Pinhole ray caster for one image size and intrinsics. cull: each box is tested
-    against the rays of the pixels around its projection only (the same image as
-    testing every ray, faster where boxes are small in view)."""
+    against the rays of the pixels around the projection of its part in front of the
+    camera only (_pixels_of: the same image as testing every ray, faster where boxes are
+    small in view or reach behind the camera)."""
 
     def __init__(self, K: np.ndarray, width: int, height: int, cull: bool = True):
         self.K, self.width, self.height, self.cull = K, width, height, cull
@@ -278,19 +286,41 @@ class Renderer:
 
     def _pixels_of(self, lo: np.ndarray, hi: np.ndarray, R: np.ndarray, o: np.ndarray):
         """Flat indices of the pixels whose rays may hit the box [lo, hi] (room frame) seen
-        from the camera (R, o): the rectangle around its projected corners, 2 px wider on
-        every side; None (every pixel) when a corner is not in front of the camera."""
+        from the camera (R, o); None: every pixel.
+
+        A hit counts only at a depth t > 1e-3 (render), so it lies in the part of the box at
+        camera depth >= NEAR_CLIP: the box clipped by that plane, a convex polytope whose
+        vertices are the corners in front of it and the points where the box's edges cross
+        it. Projection keeps convexity in front of the camera, so every hit's pixel lies in
+        the rectangle around the vertices' projections, here 2 px wider on every side. A
+        box wholly behind the plane has no pixel: the room's wall behind the camera is not
+        tested at all, the floor only below the horizon."""
         if not self.cull:
             return None
-        corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-        cam = (corners - o) @ R  # R^T (X - o), one corner a row
-        if np.any(cam[:, 2] <= 1e-3):
-            return None
+        xs, ys, zs = (lo[0], hi[0]), (lo[1], hi[1]), (lo[2], hi[2])
+        corners = np.array([[x, y, z] for x in xs for y in ys for z in zs])
+        cam = (corners - o) @ R  # R^T (X - o), one corner a row; corner k = 4 i + 2 j + l
+        z = cam[:, 2]
+        front = z >= NEAR_CLIP
+        if not front.any():
+            return np.empty(0, np.intp)
+        vertices = [cam[front]]
+        if not front.all():
+            a, b = np.array(_BOX_EDGES).T
+            cross = front[a] != front[b]
+            a, b = a[cross], b[cross]
+            s = ((NEAR_CLIP - z[a]) / (z[b] - z[a]))[:, None]
+            vertices.append(cam[a] + s * (cam[b] - cam[a]))
+        p = np.concatenate(vertices)
         K = self.K
-        u = K[0, 0] * cam[:, 0] / cam[:, 2] + K[0, 2]
-        v = K[1, 1] * cam[:, 1] / cam[:, 2] + K[1, 2]
-        c0, c1 = max(int(np.floor(u.min())) - 2, 0), min(int(np.ceil(u.max())) + 2, self.width - 1)
-        r0, r1 = max(int(np.floor(v.min())) - 2, 0), min(int(np.ceil(v.max())) + 2, self.height - 1)
+        u = K[0, 0] * p[:, 0] / p[:, 2] + K[0, 2]
+        v = K[1, 1] * p[:, 1] / p[:, 2] + K[1, 2]
+        # np.clip first: a vertex on the near plane can project 1e6 px away.
+        c0 = int(np.floor(np.clip(u.min(), -4.0, self.width + 4.0))) - 2
+        c1 = int(np.ceil(np.clip(u.max(), -4.0, self.width + 4.0))) + 2
+        r0 = int(np.floor(np.clip(v.min(), -4.0, self.height + 4.0))) - 2
+        r1 = int(np.ceil(np.clip(v.max(), -4.0, self.height + 4.0))) + 2
+        c0, c1, r0, r1 = max(c0, 0), min(c1, self.width - 1), max(r0, 0), min(r1, self.height - 1)
         if c0 > c1 or r0 > r1:
             return np.empty(0, np.intp)
         if (c1 - c0 + 1) * (r1 - r0 + 1) == self.width * self.height:
