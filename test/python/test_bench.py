@@ -445,6 +445,47 @@ def test_ate_over_the_frames_both_tracked(tmp_path):
     assert "| 15.00 |" in "\n".join(report.pair_table(ps)) and cell in "\n".join(report.pair_table(ps))
 
 
+def test_ms_over_the_frames_both_tracked(tmp_path):
+    from dynaorb.bench import common_frames
+
+    # 30 frames 0.05 s apart. Ours: no map on frames 0-4 (20 ms), 4x features on 5-14 (12 ms), then
+    # 6 ms, 1 ms of it the labels' from frame 5 on; the peer: no map on frames 0-15 (30 ms), then 8 ms. Over the
+    # whole clip the medians are 9 and 30 (0.30); over frames 16-29, which both tracked, 6 and 8 (0.75).
+    stamps = [100.0 + 0.05 * i for i in range(30)]
+    ours = [{"stamp": t, "state": "OK" if i >= 5 else "NOT_INITIALIZED",
+             "track_call_ms": 20.0 if i < 5 else 11.0 if i < 15 else 5.0, "labels_ms": 1.0 if i >= 5 else None}
+            for i, t in enumerate(stamps)]
+    ours.append({"stamp": 101.6, "state": None, "track_call_ms": None})  # a frame the core rejected
+    peer = [{"stamp": t + 1e-7, "state": "OK" if i >= 16 else "NOT_INITIALIZED", "ms": 30.0 if i < 16 else 8.0}
+            for i, t in enumerate(stamps)]
+    runs = tmp_path / "runs"
+    for who, name, frames in (("ours", "stats.json", ours), ("peer", "peer.json", peer)):
+        (runs / who / "0").mkdir(parents=True)
+        (runs / who / "0" / name).write_text(json.dumps({"per_frame": frames}))
+    mine = {**_record("s:stereo:full", "dynaorb", "full", 0.02, 9.0), "out": str(runs / "ours" / "0")}
+    theirs = {**_record("s:stereo:orbslam3", "orbslam3", "off", 0.02, 30.0), "out": str(runs / "peer" / "0")}
+    c = common_frames.compare_ms([mine], [theirs])
+    assert c == {"pairs": 1, "frames": 14, "ours": 6.0, "theirs": 8.0, "ratio": 0.75}
+    assert common_frames.run_pair_ms(mine, theirs)["frames"] == 14
+    # The records moved with their bench folder: found under it by their runs/... part.
+    moved = {**mine, "out": "/elsewhere/runs/ours/0"}
+    assert common_frames.compare_ms([moved], [theirs]) is None
+    assert common_frames.compare_ms([moved], [theirs], tmp_path)["ratio"] == 0.75
+    # A missing or unreadable file, or too few frames in common: no figure.
+    assert common_frames.compare_ms([mine], [{**theirs, "out": str(runs / "none")}]) is None
+    (runs / "peer" / "1").mkdir()
+    (runs / "peer" / "1" / "peer.json").write_text("{not json")
+    assert common_frames.compare_ms([mine], [{**theirs, "out": str(runs / "peer" / "1")}]) is None
+    late = [{**f, "state": "OK" if i >= 25 else "LOST"} for i, f in enumerate(peer)]
+    (runs / "peer" / "2").mkdir()
+    (runs / "peer" / "2" / "peer.json").write_text(json.dumps({"per_frame": late}))
+    assert common_frames.compare_ms([mine], [{**theirs, "out": str(runs / "peer" / "2")}]) is None
+    # In the pair table, beside the whole clip's ratio.
+    ps = report.pairs(report.aggregate([mine, theirs]), "full", [mine, theirs])
+    table = "\n".join(report.pair_table(ps))
+    assert "| 0.30 |" in table and "| 0.75 (6.0 / 8.0 ms, 14 frames) |" in table
+
+
 def test_stage_table_gives_the_filter_worker_apart(tmp_path):
     def full(run, corners, stereo):
         worker = {"corners_ahead": corners, **({"stereo_ahead": stereo} if stereo is not None else {})}

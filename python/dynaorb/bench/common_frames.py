@@ -1,4 +1,4 @@
-"""ATE of dynaorb and of ORB-SLAM3 over the frames both of them tracked.
+"""ATE and ms per frame of dynaorb and of ORB-SLAM3 over the frames both of them tracked.
 
 Where the two systems track different stretches of a sequence (one keeps
 its first monocular map, the other loses it and starts a new one later;
@@ -8,9 +8,18 @@ peer are cut to the stamps both trajectories hold, and each cut is
 evaluated on its own against the run's ground truth, with the alignment of
 the full evaluation (Sim3 monocular, SE3 otherwise). The medians over the
 run pairs go into the pair table beside the full-trajectory ratio.
+
+The same holds for time: a frame without a map costs each system what its
+initialisation costs (ORB-SLAM3 extracts 5x the features until its map,
+which comes at frame 21-22 on the synthetic monocular room with movers; ours
+at frame 7), so the per-frame medians over a whole clip compare different
+work. compare_ms takes each run pair's per-frame times (ours: the track
+call with the tracking thread's labels time, stats.json; the peer's:
+peer.json) over the frames both tracked (state OK in both).
 """
 from __future__ import annotations
 
+import json
 import pathlib
 import statistics
 
@@ -90,13 +99,19 @@ def run_pair(ours: dict, theirs: dict, out: pathlib.Path | None = None) -> dict 
 def compare(ours_runs: list[dict], theirs_runs: list[dict], out: pathlib.Path | None = None) -> dict | None:
     """Medians over the run pairs (run r with run r) of run_pair: {"pairs", "frames", "ours", "theirs",
     "ratio"}; None when no pair has a common-frame ATE."""
+    return _over_pairs(ours_runs, theirs_runs, lambda r, t: run_pair(r, t, out))
+
+
+def _over_pairs(ours_runs: list[dict], theirs_runs: list[dict], one) -> dict | None:
+    """Medians over the run pairs (run r of ours with the peer's run r, both finished) of one(r, t), a
+    {"frames", "ours", "theirs"} or None; None when no pair has one."""
     theirs_by_run = {r.get("run"): r for r in theirs_runs if not r.get("error")}
     results = []
     for r in ours_runs:
         t = theirs_by_run.get(r.get("run"))
         if r.get("error") or t is None:
             continue
-        c = run_pair(r, t, out)
+        c = one(r, t)
         if c is not None:
             results.append(c)
     if not results:
@@ -105,3 +120,44 @@ def compare(ours_runs: list[dict], theirs_runs: list[dict], out: pathlib.Path | 
     theirs_med = statistics.median(c["theirs"] for c in results)
     return {"pairs": len(results), "frames": int(statistics.median(c["frames"] for c in results)),
             "ours": ours_med, "theirs": theirs_med, "ratio": ours_med / theirs_med if theirs_med > 0 else None}
+
+
+def _frame_times(record: dict, name: str, out: pathlib.Path | None) -> dict[float, tuple[bool, float]] | None:
+    """{stamp: (tracked, ms)} from the run's per-frame records in its folder's `name` (stats.json: ours,
+    the track call plus the labels' time; peer.json: ORB-SLAM3's track call); None when unreadable."""
+    path = _existing(str(pathlib.Path(record.get("out") or "", name)), out) if record.get("out") else None
+    if path is None:
+        return None
+    try:
+        frames = json.loads(path.read_text()).get("per_frame") or []
+    except (OSError, ValueError):
+        return None
+    times = {}
+    for f in frames:
+        ms = f.get("ms") if "ms" in f else f.get("track_call_ms")
+        if ms is None or f.get("stamp") is None:
+            continue  # a frame the core rejected: no track call
+        times[float(f["stamp"])] = (f.get("state") == "OK", float(ms) + float(f.get("labels_ms") or 0.0))
+    return times
+
+
+def run_pair_ms(ours: dict, theirs: dict, out: pathlib.Path | None = None) -> dict | None:
+    """{"frames", "ours", "theirs"}: both runs' median ms per frame over the frames both tracked; None
+    when a run's per-frame records are missing or they share fewer than MIN_COMMON_POSES such frames."""
+    a, b = _frame_times(ours, "stats.json", out), _frame_times(theirs, "peer.json", out)
+    if not a or not b:
+        return None
+    ta = np.array([t for t, (ok, _) in a.items() if ok])
+    tb = np.array([t for t, (ok, _) in b.items() if ok])
+    keep_a, keep_b = _held(ta, tb), _held(tb, ta)
+    if int(np.count_nonzero(keep_a)) < MIN_COMMON_POSES:
+        return None
+    mine = [a[t][1] for t in ta[keep_a]]
+    peer = [b[t][1] for t in tb[keep_b]]
+    return {"frames": len(mine), "ours": statistics.median(mine), "theirs": statistics.median(peer)}
+
+
+def compare_ms(ours_runs: list[dict], theirs_runs: list[dict], out: pathlib.Path | None = None) -> dict | None:
+    """Medians over the run pairs (run r with run r) of run_pair_ms: {"pairs", "frames", "ours",
+    "theirs", "ratio"}; None when no pair has one."""
+    return _over_pairs(ours_runs, theirs_runs, lambda r, t: run_pair_ms(r, t, out))
