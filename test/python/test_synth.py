@@ -95,7 +95,7 @@ def test_culled_boxes_render_the_same_image(data):
             for a, b in zip(culled.render(scene, T, t), every.render(scene, T, t)):
                 assert np.array_equal(a, b), (seed, loop, i)
             R, o = T[:3, :3], T[:3, 3]
-            culled_boxes += sum(culled._pixels_of(*box.corners(t), R, o) is not None for box in scene.boxes)
+            culled_boxes += sum(culled._window_of(*box.corners(t), R, o) is not None for box in scene.boxes)
     assert culled_boxes > 0  # the small boxes were culled
 
 
@@ -108,7 +108,7 @@ def test_boxes_reaching_behind_the_camera_are_culled_to_what_lies_in_front(data)
     import importlib
 
     gen = importlib.import_module("dynaorb.synth.generate")
-    from dynaorb.synth.scene import FLOOR_Y, ROOM_HALF_WIDTH, Renderer, camera_pose
+    from dynaorb.synth.scene import EMPTY, FLOOR_Y, ROOM_HALF_WIDTH, Renderer, camera_pose
 
     c = SynthConfig(sensor="mono", movers=3, frames=40, seed=2, width=160, height=120, fx=131.25)
     scene, _ = gen._scene(c)
@@ -118,11 +118,12 @@ def test_boxes_reaching_behind_the_camera_are_culled_to_what_lies_in_front(data)
     t = 1.0
     T = scene.path.pose(t)
     R, o = T[:3, :3], T[:3, 3]
-    assert culled._pixels_of(*box["wall_back"].corners(t), R, o).size == 0
-    floor = culled._pixels_of(*box["floor"].corners(t), R, o)
-    assert floor is not None and 0 < floor.size < c.width * c.height
-    assert floor.min() // c.width > c.height // 4  # rows below the horizon (and a little above it)
-    assert culled._pixels_of(*box["ceiling"].corners(t), R, o).max() // c.width < 3 * c.height // 4
+    assert culled._window_of(*box["wall_back"].corners(t), R, o) is EMPTY
+    floor_rows, floor_cols = culled._window_of(*box["floor"].corners(t), R, o)
+    assert floor_cols == slice(0, c.width)
+    assert c.height // 4 < floor_rows.start < floor_rows.stop == c.height  # below the horizon (and a little above)
+    ceiling_rows, _ = culled._window_of(*box["ceiling"].corners(t), R, o)
+    assert ceiling_rows.start == 0 and ceiling_rows.stop < 3 * c.height // 4
     near = [camera_pose(0.0, pitch, 0.0, (0.3, FLOOR_Y - 0.01, 2.0)) for pitch in (-0.8, -0.3, 0.0)]
     near += [camera_pose(yaw, 0.0, 0.0, (-ROOM_HALF_WIDTH + 0.02, 0.5, 3.0)) for yaw in (-1.2, -0.5)]
     for T in near:

@@ -198,7 +198,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "full: every sequence and sensor of ../shared/data and the synthetic suite with and "
                         "without movers; both in off mode and every dynamic preset, against ORB-SLAM3; "
                         "long: a 1500-frame synthetic walk down a 62 m room, stereo and monocular, off and full, "
-                        "against ORB-SLAM3 (rendered once, about 3 min on two cores); "
+                        "against ORB-SLAM3 (rendered once, about 2 min on two cores); "
                         "seeds: the end-to-end accuracy targets (full, ground-truth masks and off against the "
                         "static room) over many synthetic seeds per sensor (OUT/seeds.md)")
     b.add_argument("--out", default="out/bench", help="output folder (default out/bench)")

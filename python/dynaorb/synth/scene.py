@@ -264,17 +264,18 @@ def _sample(tex: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return out.reshape(rows * cols, -1)[:n].astype(np.float32)
 
 
-# Culling (Renderer._pixels_of): the camera depth the box is clipped at, half the
+# Culling (Renderer._window_of): the camera depth the box is clipped at, half the
 # smallest depth render counts as a hit (1e-3 m), and the box's 12 edges as pairs of
 # corner indices (corner 4 i + 2 j + l has x from i, y from j, z from l).
 NEAR_CLIP = 5e-4
 _BOX_EDGES = [(k, k + step) for step in (4, 2, 1) for k in range(8) if not k & step]
+EMPTY = (slice(0, 0), slice(0, 0))  # _window_of: no pixel
 
 
 class Renderer:
     """Pinhole ray caster for one image size and intrinsics. cull: each box is tested
     against the rays of the pixels around the projection of its part in front of the
-    camera only (_pixels_of: the same image as testing every ray, faster where boxes are
+    camera only (_window_of: the same image as testing every ray, faster where boxes are
     small in view or reach behind the camera)."""
 
     def __init__(self, K: np.ndarray, width: int, height: int, cull: bool = True):
@@ -284,9 +285,9 @@ class Renderer:
         self.rays = rays.reshape(-1, 3)  # z = 1: the ray parameter t is the depth
         self.ray_len = np.linalg.norm(self.rays, axis=1)
 
-    def _pixels_of(self, lo: np.ndarray, hi: np.ndarray, R: np.ndarray, o: np.ndarray):
-        """Flat indices of the pixels whose rays may hit the box [lo, hi] (room frame) seen
-        from the camera (R, o); None: every pixel.
+    def _window_of(self, lo: np.ndarray, hi: np.ndarray, R: np.ndarray, o: np.ndarray):
+        """The pixels whose rays may hit the box [lo, hi] (room frame) seen from the camera
+        (R, o), as (row slice, column slice) of the image; None: every pixel; EMPTY: none.
 
         A hit counts only at a depth t > 1e-3 (render), so it lies in the part of the box at
         camera depth >= NEAR_CLIP: the box clipped by that plane, a convex polytope whose
@@ -303,7 +304,7 @@ class Renderer:
         z = cam[:, 2]
         front = z >= NEAR_CLIP
         if not front.any():
-            return np.empty(0, np.intp)
+            return EMPTY
         vertices = [cam[front]]
         if not front.all():
             a, b = np.array(_BOX_EDGES).T
@@ -322,11 +323,10 @@ class Renderer:
         r1 = int(np.ceil(np.clip(v.max(), -4.0, self.height + 4.0))) + 2
         c0, c1, r0, r1 = max(c0, 0), min(c1, self.width - 1), max(r0, 0), min(r1, self.height - 1)
         if c0 > c1 or r0 > r1:
-            return np.empty(0, np.intp)
+            return EMPTY
         if (c1 - c0 + 1) * (r1 - r0 + 1) == self.width * self.height:
             return None
-        rows = np.arange(r0, r1 + 1, dtype=np.intp)[:, None] * self.width
-        return (rows + np.arange(c0, c1 + 1, dtype=np.intp)[None, :]).ravel()
+        return slice(r0, r1 + 1), slice(c0, c1 + 1)
 
     def render(self, scene: Scene, T_room_cam: np.ndarray, t: float):
         """(image uint8, depth float32 metres, box index int16 per pixel)."""
@@ -338,24 +338,26 @@ class Renderer:
         best_t = np.full(n, np.inf)
         best_box = np.full(n, -1, np.int16)
         best_axis = np.zeros(n, np.int8)
+        shape = (self.height, self.width)
+        inv_image, best_t_image = inv.reshape((3,) + shape), best_t.reshape(shape)  # views
         for index, box in enumerate(scene.boxes):
             lo, hi = box.corners(t)
-            # Only the pixels whose rays can reach the box: the same per-pixel
-            # arithmetic on fewer pixels, so the same image.
-            pixels = self._pixels_of(lo, hi, R, o)
-            if pixels is not None and pixels.size == 0:
+            # Only the pixels whose rays can reach the box, a window of the image (views,
+            # no copies): the same per-pixel arithmetic on fewer pixels, so the same image.
+            window = self._window_of(lo, hi, R, o)
+            if window is EMPTY:
                 continue
-            inv_p = inv if pixels is None else inv[:, pixels]
-            t1, t2 = (lo - o)[:, None] * inv_p, (hi - o)[:, None] * inv_p
+            rows, cols = window or (slice(0, self.height), slice(0, self.width))
+            inv_p = inv_image[:, rows, cols]
+            t1, t2 = (lo - o)[:, None, None] * inv_p, (hi - o)[:, None, None] * inv_p
             tnear, tfar = np.minimum(t1, t2), np.maximum(t1, t2)
             hit_t = np.maximum(np.maximum(tnear[0], tnear[1]), tnear[2])
             exit_t = np.minimum(np.minimum(tfar[0], tfar[1]), tfar[2])
-            own_best = best_t if pixels is None else best_t[pixels]
-            found = np.nonzero((hit_t <= exit_t) & (hit_t > 1e-3) & (hit_t < own_best))[0]
-            closer = found if pixels is None else pixels[found]
-            best_t[closer] = hit_t[found]
+            y, x = np.nonzero((hit_t <= exit_t) & (hit_t > 1e-3) & (hit_t < best_t_image[rows, cols]))
+            closer = (y + rows.start) * self.width + (x + cols.start)
+            best_t[closer] = hit_t[y, x]
             best_box[closer] = index
-            best_axis[closer] = np.argmax(tnear[:, found], axis=0)  # the face the ray enters
+            best_axis[closer] = np.argmax(tnear[:, y, x], axis=0)  # the face the ray enters
         d = d.T
         points = o + d * best_t[:, None]
         channels = scene.boxes[0].texture[0].ndim == 3
@@ -384,7 +386,6 @@ class Renderer:
                 image[sel[m]] = sample.reshape(image[sel[m]].shape)
             shade = FACE_SHADE[axis]
             image[sel] *= shade[:, None] if channels else shade
-        shape = (self.height, self.width)
         image = image.reshape(shape + ((3,) if channels else ()))
         depth = best_t.reshape(shape).astype(np.float32)
         return image, depth, best_box.reshape(shape)
