@@ -449,8 +449,9 @@ def test_ms_over_the_frames_both_tracked(tmp_path):
     from dynaorb.bench import common_frames
 
     # 30 frames 0.05 s apart. Ours: no map on frames 0-4 (20 ms), 4x features on 5-14 (12 ms), then
-    # 6 ms, 1 ms of it the labels' from frame 5 on; the peer: no map on frames 0-15 (30 ms), then 8 ms. Over the
-    # whole clip the medians are 9 and 30 (0.30); over frames 16-29, which both tracked, 6 and 8 (0.75).
+    # 6 ms, 1 ms of it the labels' from frame 5 on; the peer: no map on frames 0-15 (30 ms), then 8 ms.
+    # Over the whole clip the medians are 9 and 30 (0.30); over frames 16-29, which both tracked, 6 and
+    # 8 (0.75).
     stamps = [100.0 + 0.05 * i for i in range(30)]
     ours = [{"stamp": t, "state": "OK" if i >= 5 else "NOT_INITIALIZED",
              "track_call_ms": 20.0 if i < 5 else 11.0 if i < 15 else 5.0, "labels_ms": 1.0 if i >= 5 else None}
@@ -474,8 +475,9 @@ def test_ms_over_the_frames_both_tracked(tmp_path):
     # A missing or unreadable file, or too few frames in common: no figure.
     assert common_frames.compare_ms([mine], [{**theirs, "out": str(runs / "none")}]) is None
     (runs / "peer" / "1").mkdir()
-    (runs / "peer" / "1" / "peer.json").write_text("{not json")
-    assert common_frames.compare_ms([mine], [{**theirs, "out": str(runs / "peer" / "1")}]) is None
+    for text in ("{not json", "[1, 2]", '{"per_frame": [3]}'):
+        (runs / "peer" / "1" / "peer.json").write_text(text)
+        assert common_frames.compare_ms([mine], [{**theirs, "out": str(runs / "peer" / "1")}]) is None
     late = [{**f, "state": "OK" if i >= 25 else "LOST"} for i, f in enumerate(peer)]
     (runs / "peer" / "2").mkdir()
     (runs / "peer" / "2" / "peer.json").write_text(json.dumps({"per_frame": late}))

@@ -129,11 +129,14 @@ def _frame_times(record: dict, name: str, out: pathlib.Path | None) -> dict[floa
     if path is None:
         return None
     try:
-        frames = json.loads(path.read_text()).get("per_frame") or []
+        data = json.loads(path.read_text())
     except (OSError, ValueError):
         return None
+    frames = data.get("per_frame") if isinstance(data, dict) else None
     times = {}
-    for f in frames:
+    for f in frames if isinstance(frames, list) else []:
+        if not isinstance(f, dict):
+            continue
         ms = f.get("ms") if "ms" in f else f.get("track_call_ms")
         if ms is None or f.get("stamp") is None:
             continue  # a frame the core rejected: no track call
