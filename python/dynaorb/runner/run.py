@@ -22,10 +22,10 @@ import pathlib
 import statistics
 import time
 
-import cv2
 import numpy as np
 
 from dynaorb import core
+from dynaorb.image_files import write_image
 from dynaorb.runner.frames import frame_file_name, frame_range, readable_frames
 from dynaorb.runner.interrupt import StopOnInterrupt
 from dynaorb.runner.label_delay import DelayedLabels
@@ -538,8 +538,7 @@ def _run(_core, opts: RunOptions, segmenter, semantic, options: dict, stop: Stop
                 dyn = system.last_dynamic_mask()
                 if dyn is not None:
                     target = save_masks / _mask_name(frame)
-                    if not cv2.imwrite(str(target), dyn):
-                        raise OSError(f"{target}: cannot write the dynamic mask")
+                    write_image(target, dyn, "dynamic mask")
                     masks_saved += 1
     stop.restore()
     wall = time.perf_counter() - start

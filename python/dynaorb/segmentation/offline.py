@@ -13,8 +13,7 @@ import json
 import pathlib
 import statistics
 
-import cv2
-
+from dynaorb.image_files import write_image
 from dynaorb.runner.frames import frame_file_name, readable_frames
 from dynaorb.segmentation.segmenter import Segmenter
 
@@ -44,8 +43,7 @@ def segment_sequence(kind: str, path: str, segmenter: Segmenter, out: str | path
             counts["cached"] += 1
             continue
         seg = segmenter.segment(frame.image)
-        if not cv2.imwrite(str(target), seg.labels):
-            raise OSError(f"{target}: cannot write the label image")
+        write_image(target, seg.labels, "label image")
         ms.append(seg.total_ms)
         counts["segmented"] += 1
     return {"frames": len(provider), **counts, "ms_median": statistics.median(ms) if ms else None,

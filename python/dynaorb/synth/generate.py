@@ -14,9 +14,9 @@ import json
 import os
 import pathlib
 
-import cv2
 import numpy as np
 
+from dynaorb.image_files import write_image
 from dynaorb.synth.scene import Renderer, build_loop_scene, build_scene
 from dynaorb.synth.textures import TextureBank, default_texture_dir
 
@@ -92,13 +92,6 @@ class _Layout:
         return f"{stamp:.6f}.png" if self.tum else f"{i:06d}.png"
 
 
-def _write(path: pathlib.Path, image: np.ndarray) -> None:
-    """cv2.imwrite, whose False (a full disk, a folder gone) would otherwise leave a hole
-    in the sequence unnoticed."""
-    if not cv2.imwrite(str(path), image):
-        raise OSError(f"could not write {path}")
-
-
 def _scene(c: SynthConfig):
     """The room, path and movers of a configuration, and the texture bank they took their
     textures from (deterministic per seed)."""
@@ -155,16 +148,16 @@ def generate(out: str | pathlib.Path, config: SynthConfig, progress=None, thread
             return np.clip(img + 0.5, 0, 255).astype(np.uint8)
 
         if layout.tum:
-            _write(layout.seq / "rgb" / name, finish(image))
+            write_image(layout.seq / "rgb" / name, finish(image))
             d16 = np.where(depth <= c.max_depth, np.round(depth * c.depth_factor), 0).astype(np.uint16)
-            _write(layout.seq / "depth" / name, d16)
+            write_image(layout.seq / "depth" / name, d16)
         else:
-            _write(layout.seq / "image_0" / name, finish(image))
+            write_image(layout.seq / "image_0" / name, finish(image))
             if c.sensor == "stereo":
                 right, _, _ = renderer.render(scene, T_room_cam @ T_right, t)
-                _write(layout.seq / "image_1" / name, finish(right))
-        _write(layout.seq / "labels" / name, labels)
-        _write(layout.seq / "dynamic_masks" / name, dyn)
+                write_image(layout.seq / "image_1" / name, finish(right))
+        write_image(layout.seq / "labels" / name, labels)
+        write_image(layout.seq / "dynamic_masks" / name, dyn)
         return T0_inv @ T_room_cam, stamp, float(np.count_nonzero(dyn)) / dyn.size
 
     # Frames on a thread per core (NumPy's array operations and OpenCV's remap and PNG

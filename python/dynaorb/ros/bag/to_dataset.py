@@ -29,10 +29,10 @@ import logging
 import pathlib
 import shutil
 
-import cv2
 import numpy as np
 
 from dynaorb import core
+from dynaorb.image_files import write_image
 from dynaorb.ros.bag import messages as m
 from dynaorb.ros.bag.poses import sample
 from dynaorb.ros.bag.read import BagProvider
@@ -73,11 +73,6 @@ def depth_for_file(msg, depth_map_factor: float) -> tuple[np.ndarray, int]:
     keep = valid & ~over
     out[keep] = np.rint(scaled[keep]).astype(np.uint16)
     return out, int(over.sum())
-
-
-def _write(path: pathlib.Path, image: np.ndarray) -> None:
-    if not cv2.imwrite(str(path), image):
-        raise OSError(f"{path}: cannot write the image")
 
 
 def _prepare(out: pathlib.Path, overwrite: bool) -> None:
@@ -158,15 +153,15 @@ def _convert(opts: BagToDatasetOptions, provider: BagProvider, _core) -> dict:
         for role, image in files.items():
             if role == "depth":
                 depth_stamp = provider.part_stamps(i)["depth"]
-                _write(image_dirs[role] / f"{depth_stamp:.6f}.png", image)
+                write_image(image_dirs[role] / f"{depth_stamp:.6f}.png", image)
                 lists["depth"].append((depth_stamp, f"depth/{depth_stamp:.6f}.png"))
                 counts["depth_too_far"] += too_far
             else:
-                _write(image_dirs[role] / name, image)
+                write_image(image_dirs[role] / name, image)
         lists["image"].append((stamp, f"rgb/{name}" if tum else name))
         if labels is not None:
             (seq / "labels").mkdir(exist_ok=True)
-            _write(seq / "labels" / name, labels.astype(np.uint8) if labels.dtype != np.uint8 else labels)
+            write_image(seq / "labels" / name, labels.astype(np.uint8) if labels.dtype != np.uint8 else labels)
             counts["labels"] += 1
         stamps.append(stamp)
         counts["frames"] += 1
