@@ -95,8 +95,11 @@ struct DynamicFilterOptions {
   // runs each) the overlap had gained 36.3 -> 33.0 ms (mono) and 38.0 ->
   // 34.4 ms (RGB-D). Paced as well (`--realtime`, the cores idle between
   // frames): synthetic mono with movers 10.3-12.5 ms overlapped against
-  // 8.2-12.0 not (5 + 5 interleaved runs, ATE the same). On 4 or more
-  // cores: not measured here.
+  // 8.2-12.0 not (5 + 5 interleaved runs, ATE the same). Again at 25109d3,
+  // with the extraction's levels shared with the FrameBuilder's helper:
+  // that clip unpaced, 6 + 6 interleaved runs, track call 12.5-14.3 ms
+  // overlapped (median 13.0; the filter 6.3-7.8) against 10.1-13.0 (12.0;
+  // the filter 3.5-4.5). On 4 or more cores: not measured here.
   int overlap_extraction = -1;
   bool overlaps_extraction(unsigned hardware_threads, Sensor sensor) const;
 
