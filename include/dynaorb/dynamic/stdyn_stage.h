@@ -79,6 +79,9 @@ struct StdynOptions {
   // within this radius (px, square window): the released codes search a
   // 30x30 window (+-15 px) around each dynamic point for a movable label,
   // which tolerates masks that do not quite reach the object's border.
+  // Counting only the points on the label's own pixels spares the parked
+  // car of the synthetic seed 0 but misses movers (stereo seeds 0-11 with
+  // movers, `full` / static median 1.06 -> 1.17): docs/dynamic-frontend.md.
   int object_search_radius_px = 15;
   // Ours (the papers decide every frame afresh; the same rule as
   // Dynamic.dm.keep_moving_frames): an object not proven moving by its own
