@@ -189,6 +189,24 @@ struct TrackerOptions {
   // asynchronous mapping, unpaced (KITTI 06, 3 + 3 interleaved runs), the
   // map gets 29 keyframes either way and the ATE is the same (0.037-0.042
   // against 0.038-0.043 m), so the default stays ORB-SLAM2's.
+  // Monocular with lower ratios (fewer keyframes; at 25109d3): the seeds
+  // suite (`dynaorb bench --suite seeds --sensors mono --conditions
+  // static,full --tracker ref_ratio_mono=R`, synchronous, where 0.9 makes a
+  // keyframe of nearly every frame) median ATE static / `full` 0.9 4.89 /
+  // 5.56 mm, 0.85 4.30 / 4.08, 0.8 3.37 / 3.70 (11 of 12 seeds better),
+  // 0.75 3.16 / 3.94, 0.7 3.40 / 4.66, the same frames tracked; the bench's
+  // clip with movers, `full` paced (5 + 5 interleaved runs) 0.8: ATE
+  // 3.6-4.0 against 5.3-7.0 mm, 18-20 keyframes made against 31-36, track
+  // call median 11.3 against 12.6 ms. EuRoC MH_05 does not follow: with 0.8,
+  // synchronous, `off` 15.1 -> 12.3 mm but `full` with the network lost at
+  // frame 35 (a second map from frame 99); asynchronous and paced, `full`
+  // with the network (6 + 6 interleaved runs) 12.1 -> 14.1 mm (worse in 6
+  // of 6 pairs), `off` (4 + 4) 12.2 -> 13.5 mm, with 42-61 keyframes made
+  // against 79-119 and the track call 0.2 ms (`full`) and 1.0 ms (`off`)
+  // shorter. With 0.85, paced `full` with the network (21 + 21
+  // interleaved): 3 runs lost their scale (1.3-1.5 m) against none, the
+  // others' median 12.1 against 12.3 mm, track call 9.2 against 10.1 ms.
+  // ORB-SLAM2's 0.9 stays.
   double ref_ratio_stereo = 0.75;
   double ref_ratio_mono = 0.9;
   // Stereo / RGB-D: before the motion model's search, the last frame's
