@@ -445,6 +445,49 @@ def test_ate_over_the_frames_both_tracked(tmp_path):
     assert "| 15.00 |" in "\n".join(report.pair_table(ps)) and cell in "\n".join(report.pair_table(ps))
 
 
+def test_ate_over_the_frames_both_tracked_aligned_with_scale(tmp_path):
+    import numpy as np
+
+    from dynaorb.bench import common_frames
+
+    # 30 poses on a helix about 2 m long. Ours: the right shape, 1 mm off (alternating up / down),
+    # but 1 % too short; the peer: the right length, 2 mm off. SE3 puts ours behind (the length),
+    # Sim3 ahead (the shape): 1 / 2 mm.
+    t = 100.0 + 0.05 * np.arange(30)
+    a = np.linspace(0, 2, 30)
+    gt = np.stack([np.cos(a), np.sin(a), 0.2 * a], axis=1)
+    sign = np.where(np.arange(30) % 2 == 0, 1.0, -1.0)[:, None]
+    runs = tmp_path / "runs"
+    rec = {"sensor": "stereo", "align": "se3", "run": 0}
+    mine = {**rec, "case": "s:stereo:off", "out": str(runs / "ours" / "0"),
+            "trajectory": _tum(runs / "ours" / "0" / "trajectory.tum", t, 0.99 * gt + sign * [0, 0, 0.001])}
+    _tum(runs / "ours" / "0" / "groundtruth.tum", t, gt)
+    peer = {**rec, "case": "s:stereo:orbslam3",
+            "trajectory": _tum(runs / "peer" / "0" / "trajectory.tum", t, gt + sign * [0, 0, 0.002])}
+    se3, sim3 = common_frames.compare([mine], [peer]), common_frames.compare_sim3([mine], [peer])
+    assert se3["ratio"] > 2
+    assert sim3["frames"] == 30 and sim3["ratio"] == pytest.approx(0.5, abs=0.05)
+    assert sim3["ours"] == pytest.approx(0.001, abs=2e-4)
+    # Monocular runs are evaluated with Sim3 already: no second figure, and the cell says so.
+    mono = {**mine, "sensor": "mono", "align": "sim3", "case": "s:mono:off"}
+    assert common_frames.compare_sim3([mono], [{**peer, "case": "s:mono:orbslam3"}]) is None
+    rows = [{**_record("s:stereo:off", "dynaorb", "off", 0.01, 40.0), **mine},
+            {**_record("s:stereo:orbslam3", "orbslam3", "off", 0.002, 60.0), **peer},
+            {**_record("s:mono:off", "dynaorb", "off", 0.01, 40.0), **mono},
+            {**_record("s:mono:orbslam3", "orbslam3", "off", 0.002, 60.0), **peer, "case": "s:mono:orbslam3",
+             "sensor": "mono"}]
+    ps = {p["sensor"]: p for p in report.pairs(report.aggregate(rows), "off", rows)}
+    assert ps["stereo"]["common_sim3"]["ratio"] == pytest.approx(0.5, abs=0.05)
+    table = report.pair_table(list(ps.values()))
+    header = table[0].split(" | ")
+    column = header.index("the same aligned with scale (Sim3)")
+    assert header[column - 1] == "ATE ours/theirs over the frames both tracked"
+    cells = {line.split(" | ")[1]: line.split(" | ")[column] for line in table[2:]}
+    c = ps["stereo"]["common_sim3"]
+    assert cells["stereo"] == f"{c['ratio']:.2f} ({c['ours']:.4f} / {c['theirs']:.4f} m, 30 frames)"
+    assert cells["mono"] == "as before"
+
+
 def test_ms_over_the_frames_both_tracked(tmp_path):
     from dynaorb.bench import common_frames
 

@@ -9,6 +9,12 @@ evaluated on its own against the run's ground truth, with the alignment of
 the full evaluation (Sim3 monocular, SE3 otherwise). The medians over the
 run pairs go into the pair table beside the full-trajectory ratio.
 
+Stereo and RGB-D trajectories have a metric scale, and their SE3 ATE holds
+its error: on a short clip a trajectory 0.3 % too long or short can weigh
+more than its shape (docs/slam-core.md, "The synthetic stereo room's
+scale"). compare_sim3 gives the same cut pairs aligned with scale as well,
+so the pair table says which of the two an ATE ratio comes from.
+
 The same holds for time: a frame without a map costs each system what its
 initialisation costs (ORB-SLAM3 extracts 5x the features until its map,
 which comes at frame 21-22 on the synthetic monocular room with movers; ours
@@ -66,19 +72,20 @@ def _cut(traj, keep: np.ndarray):
                             timestamps=np.asarray(traj.timestamps)[keep])
 
 
-def run_pair(ours: dict, theirs: dict, out: pathlib.Path | None = None) -> dict | None:
+def run_pair(ours: dict, theirs: dict, out: pathlib.Path | None = None, align: str | None = None) -> dict | None:
     """{"frames", "ours", "theirs"}: both runs' ATE RMSE [m] over the frames both tracked, aligned as
-    our run's full evaluation was; None when a trajectory, the ground truth or our run's ATE is missing
-    or they share fewer than MIN_COMMON_POSES poses."""
+    our run's full evaluation was (or with `align`: "se3", "sim3"); None when a trajectory, the ground
+    truth or our run's ATE is missing or they share fewer than MIN_COMMON_POSES poses."""
     from evo.tools.file_interface import FileInterfaceException
 
     from dynaorb.evaluation import evaluate, load_trajectory
 
     ours_file, theirs_file = _existing(ours.get("trajectory"), out), _existing(theirs.get("trajectory"), out)
     gt_file = _existing(str(pathlib.Path(ours.get("out") or "", "groundtruth.tum")), out)
-    align = ours.get("align")  # the full evaluation's: sim3 monocular, se3 otherwise; none without an ATE
-    if not (ours_file and theirs_file and gt_file and align):
+    evaluated = ours.get("align")  # the full evaluation's: sim3 monocular, se3 otherwise; none without an ATE
+    if not (ours_file and theirs_file and gt_file and evaluated):
         return None
+    align = align or evaluated
     try:
         a, b, gt = load_trajectory(ours_file), load_trajectory(theirs_file), load_trajectory(gt_file)
     except (ValueError, OSError, FileInterfaceException):  # unreadable or empty: no common-frame figure
@@ -100,6 +107,14 @@ def compare(ours_runs: list[dict], theirs_runs: list[dict], out: pathlib.Path | 
     """Medians over the run pairs (run r with run r) of run_pair: {"pairs", "frames", "ours", "theirs",
     "ratio"}; None when no pair has a common-frame ATE."""
     return _over_pairs(ours_runs, theirs_runs, lambda r, t: run_pair(r, t, out))
+
+
+def compare_sim3(ours_runs: list[dict], theirs_runs: list[dict], out: pathlib.Path | None = None) -> dict | None:
+    """compare() with every cut aligned with scale (Sim3); None where our runs were evaluated with Sim3
+    already (monocular: compare() is this) or no pair has a common-frame ATE."""
+    if any(r.get("align") == "sim3" for r in ours_runs):
+        return None
+    return _over_pairs(ours_runs, theirs_runs, lambda r, t: run_pair(r, t, out, align="sim3"))
 
 
 def _over_pairs(ours_runs: list[dict], theirs_runs: list[dict], one) -> dict | None:
