@@ -197,24 +197,17 @@ def _ate_ratio_cell(p: dict) -> str:
     return cell
 
 
-def _common_cell(p: dict, key: str = "common") -> str:
-    c = p.get(key)
+def _common_cell(c: dict | None, value: str = "{:.4f}", unit: str = "m") -> str:
+    """A common_frames comparison: the ratio, both medians in `unit` and the frames compared."""
     if not c or c["ratio"] is None:
         return "n/a"
-    return f"{c['ratio']:.2f} ({c['ours']:.4f} / {c['theirs']:.4f} m, {c['frames']} frames)"
+    return f"{c['ratio']:.2f} ({value.format(c['ours'])} / {value.format(c['theirs'])} {unit}, {c['frames']} frames)"
 
 
 def _common_sim3_cell(p: dict) -> str:
     if p["ours"].get("align") == "sim3":  # monocular: the column before is Sim3 already
         return "as before"
-    return _common_cell(p, "common_sim3")
-
-
-def _common_ms_cell(p: dict) -> str:
-    c = p.get("common_ms")
-    if not c or c["ratio"] is None:
-        return "n/a"
-    return f"{c['ratio']:.2f} ({c['ours']:.1f} / {c['theirs']:.1f} ms, {c['frames']} frames)"
+    return _common_cell(p.get("common_sim3"))
 
 
 def pair_table(ps: list[dict]) -> list[str]:
@@ -228,8 +221,8 @@ def pair_table(ps: list[dict]) -> list[str]:
           _ate_ratio_cell(p), _ours_ms_cell(p["ours"]),
           _f(p["theirs"]["track_call_ms_median"], "{:.1f}"), _f(p["ms_ratio"], "{:.2f}"),
           " / ".join(f"{v:.2f}" for v in p.get("ms_ratio_runs") or []) or "n/a",
-          _pct(p["ours"]["tracked_fraction"]), _pct(p["theirs"]["tracked_fraction"]), _common_cell(p),
-          _common_sim3_cell(p), _common_ms_cell(p)]
+          _pct(p["ours"]["tracked_fraction"]), _pct(p["theirs"]["tracked_fraction"]), _common_cell(p.get("common")),
+          _common_sim3_cell(p), _common_cell(p.get("common_ms"), "{:.1f}", "ms")]
          for p in ps))
 
 
