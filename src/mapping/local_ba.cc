@@ -65,6 +65,8 @@ void LocalMapper::local_bundle_adjustment(KeyFrame& kf) {
   if (abort_ba_) return;
   optimize::BaOptions options;
   options.num_threads = o_.ba_threads;
+  options.iterations_first = o_.ba_iterations_first;
+  options.iterations_second = o_.ba_iterations_second;
   const optimize::BaResult r = optimize::bundle_adjust(problem, options, &abort_ba_);
   {
     std::lock_guard<std::mutex> c_lk(queue_mutex_);

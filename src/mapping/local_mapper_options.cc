@@ -16,6 +16,8 @@ void LocalMapperOptions::validate() const {
   c.at_least("min_observations_mono", min_observations_mono, 0);
   c.between("redundant_ratio", redundant_ratio, 0, 1, true);
   c.at_least("redundant_observers", redundant_observers, 1);
+  c.at_least("ba_iterations_first", ba_iterations_first, 1);
+  c.at_least("ba_iterations_second", ba_iterations_second, 0);
   c.at_least("ba_threads", ba_threads, 1);
   c.at_least("ba_threads_synchronous", ba_threads_synchronous, 0);
   check_background_nice(thread_nice, "local mapping option 'thread_nice'");

@@ -6,7 +6,8 @@
 //      g2o edges take those behind it into the first pass too, mirrored through the camera
 //      plane; here they would be projected at kMinDepth, see Workspace::in_front);
 //   2. unless aborted, the observations with chi2 > threshold or whose point lies at depth <= 0
-//      are excluded and iterations_second iterations are run on the rest WITHOUT the kernel;
+//      are excluded and iterations_second iterations are run on the rest WITHOUT the kernel
+//      (none when it is 0: ORB-SLAM3's schedule, one pass of 10, the outliers only flagged);
 //   3. the outlier flags are recomputed on the final estimate (chi2 > threshold or depth <= 0).
 // An abort flag (tracking wants a new keyframe) is polled by an IterationCallback at the end of
 // every LM iteration and between the passes; on abort the latest accepted iterate is returned
@@ -314,7 +315,7 @@ BaResult bundle_adjust(const BaProblem& problem, const BaOptions& options,
     // Pass 1: the valid observations whose point is in front of the camera, Huber.
     result.aborted = ws.solve(ws.in_front(), /*robust=*/true, options.iterations_first, abort);
     if (!result.aborted) result.aborted = abort_requested(abort);
-    if (!result.aborted) {
+    if (!result.aborted && options.iterations_second > 0) {
       // Pass 2: inliers of pass 1 only, plain least squares.
       std::vector<bool> outlier;
       ws.classify(&outlier);

@@ -28,6 +28,12 @@ TEST(LocalMapperOptions, DefaultsAndOffValuesAreValid) {
   EXPECT_EQ(validation_refusal<LocalMapperOptions>([](auto& o) { o.min_observations_stereo = 0; }), "");
   EXPECT_EQ(validation_refusal<LocalMapperOptions>([](auto& o) { o.local_ba = false; }), "");
   EXPECT_EQ(validation_refusal<LocalMapperOptions>([](auto& o) { o.thread_nice = 0; }), "");
+  // ORB-SLAM3's local BA: one pass of 10, no second pass.
+  EXPECT_EQ(validation_refusal<LocalMapperOptions>([](auto& o) {
+              o.ba_iterations_first = 10;
+              o.ba_iterations_second = 0;
+            }),
+            "");
 }
 
 TEST(LocalMapperOptions, BadValuesAreRefusedByName) {
@@ -41,6 +47,10 @@ TEST(LocalMapperOptions, BadValuesAreRefusedByName) {
             "local mapping option 'min_observations_mono' is -1; it must be >= 0");
   EXPECT_EQ(validation_refusal<LocalMapperOptions>([](auto& o) { o.ba_threads = 0; }),
             "local mapping option 'ba_threads' is 0; it must be >= 1");
+  EXPECT_EQ(validation_refusal<LocalMapperOptions>([](auto& o) { o.ba_iterations_first = 0; }),
+            "local mapping option 'ba_iterations_first' is 0; it must be >= 1");
+  EXPECT_EQ(validation_refusal<LocalMapperOptions>([](auto& o) { o.ba_iterations_second = -1; }),
+            "local mapping option 'ba_iterations_second' is -1; it must be >= 0");
   EXPECT_NE(validation_refusal<LocalMapperOptions>([](auto& o) { o.thread_nice = 20; }).find("'thread_nice'"),
             std::string::npos);
 }
