@@ -195,7 +195,10 @@ def test_full_within_1_2x_of_static_and_off_3x_worse(tmp_path, synth_seeds, sens
     #          to the cues); 1.20 / 1.57 / 1.28 (1.28) before the
     #          right image's budget followed the mask (stereo_right_budget_max_factor);
     #          over seeds 0-12 the median went 1.26 -> 1.11
-    #   mono   1.34 / 0.84 / 0.90 (0.90), 53-56 of 60 frames tracked (static: 55-56),
+    #   mono   1.35 / 1.10 / 0.94 (1.10), 53-56 of 60 frames tracked (static: 55-56),
+    #          at 8c64884 (the seeds suite's rows in docs/dynamic-frontend.md,
+    #          the same at 8383949; seed 1's move not traced);
+    #          1.34 / 0.84 / 0.90 (0.90) at 6c02b21,
     #          with the two-view initialiser trying the other model (seed 1 0.72
     #          over 53 frames before); 1.17 / 0.72 / 0.89 when first recorded (seed 0
     #          moved with later changes, not traced);
