@@ -28,7 +28,9 @@ def test_options_refuse_what_cannot_run():
                          ({"preset": "li", "sensors": ("rgbd",)}, "no stage list for the rgbd sensor"),
                          ({"tracker": {"min_pose_iniers": 5}}, "unknown tracker option 'min_pose_iniers'"),
                          ({"mapping": {"redundant_ratio": 2}}, "local mapping option 'redundant_ratio' is 2"),
-                         ({"loop": {"ransac.chi2": 0}}, "loop closing option 'ransac.chi2' is 0")]:
+                         ({"loop": {"ransac.chi2": 0}}, "loop closing option 'ransac.chi2' is 0"),
+                         ({"realtime": float("nan")}, "expected a positive number"),
+                         ({"realtime": 1.0, "jobs": 2}, "jobs must be 1 with realtime")]:
         with pytest.raises(ValueError, match=says):
             SeedsOptions(**kwargs).validate()
 
@@ -101,13 +103,36 @@ def test_a_small_sweep_runs_every_condition(tmp_path, data):
     assert "## rgbd" in text and f"{runs['off']['ate_rmse'] * 1000:.2f}" in text
 
 
+def test_a_paced_sweep_maps_asynchronously(tmp_path, data):
+    """--realtime: each run as a camera delivers it, local mapping in its own thread."""
+    opts = SeedsOptions(out=str(tmp_path / "out"), seeds=(7,), sensors=("rgbd",), conditions=("static", "full"),
+                        frames=20, width=320, height=240, fx=262.5, realtime=4.0)
+    results = run_seeds(opts, progress=lambda m: None)
+    runs = {r["condition"]: r for r in results["records"]}
+    assert set(runs) == {"static", "full"}
+    for condition, r in runs.items():
+        assert not r.get("error"), (condition, r.get("error"))
+        assert r["tracked_frames"] == r["frames"] == 20, condition
+        run = tmp_path / "out" / "runs" / "rgbd" / "s7" / condition
+        spec = json.loads((run / "spec.json").read_text())
+        assert spec["synchronous_mapping"] is False and spec["realtime"] == 4.0
+        assert "mapping" not in spec  # one run at a time: no share of the cores to set
+        stats = json.loads((run / "stats.json").read_text())
+        assert stats["synchronous_mapping"] is False and stats["realtime"]["rate"] == 4.0
+        assert stats["realtime"]["frames"] == 20
+    assert results["options"]["realtime"] == 4.0
+    text = (tmp_path / "out" / "seeds.md").read_text()
+    assert "asynchronous mapping with the frames delivered at 4x the recording's rate" in text
+
+
 def test_cli_refuses_bad_seed_options_before_running(tmp_path, capsys):
     from dynaorb.cli.main import main
 
     out = tmp_path / "out"
     for extra, says in [(["--seeds", "0"], "one seed S alone: S-S"), (["--sensors", "rgbd,lidar"], "lidar"),
                         (["--conditions", "full,off"], "include static"), (["--jobs", "0"], "jobs"),
-                        (["--realtime"], "maps synchronously")]:
+                        (["--realtime", "--jobs", "2"], "jobs must be 1 with realtime"),
+                        (["--realtime", "-1"], "expected a positive number")]:
         assert main(["bench", "--suite", "seeds", "--out", str(out), *extra]) == 2, extra
         assert says in capsys.readouterr().err
     assert not out.exists()

@@ -6,7 +6,10 @@ miss whole failures: RGB-D seeds 6-10 once gave `full` 2-12x the static
 error while seeds 0-2 gave 1.05-1.29. This suite renders, per sensor and
 seed, the room without and with movers (what `dynaorb synth --movers 0|3
 --frames 60 --seed S` writes) and runs each condition once, with
-synchronous mapping (runs repeat, to rounding):
+synchronous mapping (runs repeat, to rounding), or with `realtime` as a
+camera delivers the frames: asynchronous mapping, paced at the recording's
+rate (runs do not repeat; monocular tracking then makes far fewer
+keyframes than synchronously, where local mapping is always idle):
 
   static  no movers, no filter: the reference;
   full    movers, the `full` preset with the label images;
@@ -68,6 +71,9 @@ class SeedsOptions:
     # What the "full" and "full_static" conditions run: a preset name of config/dynamic/ or a preset YAML (a variant under test).
     preset: str = "full"
     jobs: int = 1                    # runs (and renders) at a time; the runs are synchronous, so repeatable
+    # > 0: asynchronous mapping, the frames delivered at this many times the recording's rate by their
+    # stamps (as users' runs; not repeatable); the peer conditions paced alike. 0: synchronous mapping.
+    realtime: float = 0.0
     frames: int = SYNTH_FRAMES
     width: int = 640
     height: int = 480
@@ -95,6 +101,13 @@ class SeedsOptions:
                              + (f" (unknown: {', '.join(bad)})" if bad else ""))
         if self.jobs < 1:
             raise ValueError(f"jobs must be >= 1, got {self.jobs}")
+        if self.realtime:
+            from dynaorb.runner.pacing import Pacer
+
+            Pacer(self.realtime)  # a rate that is not a finite positive number: ValueError
+            if self.jobs > 1:
+                raise ValueError(f"jobs must be 1 with realtime (paced runs side by side would take each "
+                                 f"other's cores), got {self.jobs}")
         from dynaorb import core
         from dynaorb.runner.run import core_options
 
@@ -171,8 +184,10 @@ def _run(seq: Sequence, sensor: str, seed: int, condition: str, out: pathlib.Pat
     if condition in FILTERED:
         preset = opts.preset
     spec = {"kind": seq.kind, "path": seq.path, "sensor": sensor, "out": str(out), "dynamic": preset,
-            "vocabulary": opts.vocabulary, "synchronous_mapping": True, "result": str(out / "result.json"),
-            "core": core_fingerprint()}
+            "vocabulary": opts.vocabulary, "synchronous_mapping": not opts.realtime,
+            "result": str(out / "result.json"), "core": core_fingerprint()}
+    if opts.realtime:
+        spec["realtime"] = opts.realtime
     if labels:
         spec["labels"] = seq.labels
     if masks:
@@ -229,7 +244,8 @@ def run_seeds(opts: SeedsOptions, progress=print) -> dict:
         seq = sequences[(sensor, movers(condition), seed)]
         run_out = out / "runs" / sensor / f"s{seed}" / condition
         if condition in seeds_peer.PEER_CONDITIONS:
-            return seeds_peer.run(seq, sensor, seed, condition, run_out, peer, opts.timeout_s, opts.resume)
+            return seeds_peer.run(seq, sensor, seed, condition, run_out, peer, opts.timeout_s, opts.resume,
+                                  opts.realtime)
         return _run(seq, sensor, seed, condition, run_out, opts)
 
     with concurrent.futures.ThreadPoolExecutor(max_workers=opts.jobs) as pool:
@@ -296,6 +312,13 @@ def summarize(results: dict) -> list[dict]:
     return rows
 
 
+def _mapping_mode(realtime) -> str:
+    if not realtime:
+        return "synchronous mapping (repeatable)"
+    return (f"asynchronous mapping with the frames delivered at {realtime:g}x the recording's rate "
+            "(as a camera delivers them; runs do not repeat)")
+
+
 def _mm(v) -> str:
     return "n/a" if v is None else f"{v * 1000:.2f}"
 
@@ -310,7 +333,7 @@ def render(results: dict) -> str:
     lines = [f"# Benchmark: seeds ({n} synthetic seed{'s' if n != 1 else ''} per sensor)", "",
              f"Started {results['started']}, finished {results['finished']}. Seeds "
              f"{', '.join(map(str, opts['seeds']))}; {opts['frames']} frames at {opts['width']}x{opts['height']}, "
-             f"{MOVERS} movers against none; one run per condition, synchronous mapping (repeatable).", "",
+             f"{MOVERS} movers against none; one run per condition, {_mapping_mode(opts.get('realtime'))}.", "",
              "Conditions: static = no movers, no filter (the reference); full = movers, the "
              f"`{preset}` preset with the label images; full_static = no movers, the same preset; masks = movers, "
              "the ground-truth dynamic masks kept out of tracking; off = movers, "

@@ -38,14 +38,15 @@ def setup(conditions, venv: str | None, vocabulary: str, progress) -> dict | Non
 
 
 def run(seq, sensor: str, seed: int, condition: str, out: pathlib.Path, peer: dict, timeout_s: float,
-        resume: bool) -> dict:
-    """One peer run (a seeds-suite record: sensor, seed, condition, ate_rmse, frames, tracked_frames)."""
+        resume: bool, realtime: float = 0.0) -> dict:
+    """One peer run (a seeds-suite record: sensor, seed, condition, ate_rmse, frames, tracked_frames); realtime
+    > 0: the frames paced at that rate, as ours."""
     from dynaorb.bench.suite_runner import peer_record
 
     fields = {"seed": seed, "condition": condition}
     if peer.get("python") is None:
         return {"sensor": sensor, **fields, "out": str(out), "error": f"ORB-SLAM3 {peer['status']['status']}"}
-    return peer_record(seq, out, peer["python"], peer["vocabulary"], timeout_s, resume, fields=fields)
+    return peer_record(seq, out, peer["python"], peer["vocabulary"], timeout_s, resume, realtime, fields=fields)
 
 
 def ratios(results: dict) -> dict:

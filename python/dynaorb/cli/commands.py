@@ -168,9 +168,9 @@ def cmd_bench(args) -> int:
         if args.readme:
             _write_readme(out)
         return 0
-    if args.realtime and args.suite not in ("quick", "full", "long"):
-        print("dynaorb bench: --realtime paces the quick, full and long suites' runs; the seeds suite maps "
-              "synchronously and the segmentation suite times the network", file=sys.stderr)
+    if args.realtime and args.suite not in ("quick", "full", "long", "seeds"):
+        print("dynaorb bench: --realtime paces the quick, full, long and seeds suites' runs; the segmentation "
+              "suite times the network", file=sys.stderr)
         return 2
     if (args.only or args.presets) and args.suite not in ("quick", "full", "long"):
         print("dynaorb bench: --only and --presets pick clips and presets of the quick, full and long suites "
@@ -206,6 +206,7 @@ def cmd_bench(args) -> int:
 
         try:
             opts = SeedsOptions(out=args.out, seeds=parse_seeds(args.seeds), jobs=args.jobs, resume=args.resume,
+                                realtime=args.realtime,
                                 sensors=parse_list(args.sensors), conditions=parse_list(args.conditions),
                                 preset=args.preset, synth_root=args.synth_root, peer_venv=args.peer_venv,
                                 tracker=key_values(args.tracker, "--tracker") or None,

@@ -218,7 +218,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="seeds, quick/full/long: where the rendered sequences are cached (default OUT/synth)")
     b.add_argument("--jobs", type=int, default=1,
                    help="seeds: runs at a time (default 1; the runs map synchronously, so their ATE does not "
-                        "depend on it)")
+                        "depend on it; 1 with --realtime)")
     for flag, what in (("--tracker", "tracking"), ("--mapping", "local mapping"), ("--loop", "loop closing")):
         b.add_argument(flag, metavar="KEY=VALUE", action="append", default=[],
                        help=f"seeds: a {what} option for every dynaorb run, as `dynaorb run {flag}` "
@@ -233,7 +233,9 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--realtime", type=float, nargs="?", const=1.0, default=0.0, metavar="RATE",
                    help="quick/full/long: deliver the frames to dynaorb and to ORB-SLAM3 alike at RATE times the "
                         "recording's rate by their stamps (default without the option: as fast as the track "
-                        "calls take them; the option alone: 1, as a camera or `rosbag play` delivers them)")
+                        "calls take them; the option alone: 1, as a camera or `rosbag play` delivers them); "
+                        "seeds: the same pacing with asynchronous mapping instead of synchronous (as users' runs; "
+                        "runs do not repeat; --jobs 1)")
     b.add_argument("--peer-venv", metavar="DIR",
                    help="quick/full/long/seeds: virtual environment for pyorbslam3 (default ~/.cache/dynaorb/peer/orbslam3-venv; "
                         "created and installed on first use)")
