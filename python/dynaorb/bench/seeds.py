@@ -8,8 +8,9 @@ seed, the room without and with movers (what `dynaorb synth --movers 0|3
 --frames 60 --seed S` writes) and runs each condition once, with
 synchronous mapping (runs repeat, to rounding), or with `realtime` as a
 camera delivers the frames: asynchronous mapping, paced at the recording's
-rate (runs do not repeat; monocular tracking then makes far fewer
-keyframes than synchronously, where local mapping is always idle):
+rate (runs do not repeat; monocular tracking then makes fewer keyframes
+than synchronously, where local mapping is idle at every frame: 24-39
+against 39-53 of the 51-56 frames tracked):
 
   static  no movers, no filter: the reference;
   full    movers, the `full` preset with the label images;
