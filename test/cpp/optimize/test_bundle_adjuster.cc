@@ -188,9 +188,9 @@ TEST(BundleAdjuster, MonocularOnlyConverges) {
   }
 }
 
-TEST(BundleAdjuster, FlagsInjectedOutliers) {
-  const Scene s = make_scene(7, 500, 0.05);
-  const BaResult r = bundle_adjust(s.problem);
+// The outlier flags of r against the scene's injected outliers (recall >= 0.95, false
+// outliers < 1 % of the inliers) and each free keyframe within 8 mm / 0.1 deg of the truth.
+void check_flags_and_poses(const Scene& s, const BaResult& r) {
   int tp = 0, fp = 0, fn = 0, n_inliers = 0;
   for (size_t i = 0; i < r.outlier.size(); ++i) {
     tp += r.outlier[i] && s.injected[i];
@@ -205,6 +205,12 @@ TEST(BundleAdjuster, FlagsInjectedOutliers) {
     EXPECT_LT(center_error(r.T_cw[k], s.truth.keyframes[k].T_cw), 0.008);
     EXPECT_LT(rotation_error_deg(r.T_cw[k], s.truth.keyframes[k].T_cw), 0.1);
   }
+}
+
+TEST(BundleAdjuster, FlagsInjectedOutliers) {
+  const Scene s = make_scene(7, 500, 0.05);
+  const BaResult r = bundle_adjust(s.problem);
+  check_flags_and_poses(s, r);
   EXPECT_LT(mean_point_error(r.points, s.truth.points), 0.005);
   EXPECT_LT(r.final_cost, r.initial_cost);
 }
@@ -220,20 +226,7 @@ TEST(BundleAdjuster, OneRobustPassFlagsInjectedOutliersToo) {
   one_pass.iterations_second = 0;
   const BaResult r = bundle_adjust(s.problem, one_pass);
   EXPECT_FALSE(r.aborted);
-  int tp = 0, fp = 0, fn = 0, n_inliers = 0;
-  for (size_t i = 0; i < r.outlier.size(); ++i) {
-    tp += r.outlier[i] && s.injected[i];
-    fp += r.outlier[i] && !s.injected[i];
-    fn += !r.outlier[i] && s.injected[i];
-    n_inliers += !s.injected[i];
-  }
-  ASSERT_GT(tp + fn, 100);
-  EXPECT_GE(double(tp) / (tp + fn), 0.95) << "missed " << fn;
-  EXPECT_LT(fp, 0.01 * n_inliers) << "false outliers " << fp;
-  for (int k = kFixed; k < kKeyframes; ++k) {
-    EXPECT_LT(center_error(r.T_cw[k], s.truth.keyframes[k].T_cw), 0.008);
-    EXPECT_LT(rotation_error_deg(r.T_cw[k], s.truth.keyframes[k].T_cw), 0.1);
-  }
+  check_flags_and_poses(s, r);
   // The points keep what the Huber loss lets the outliers pull: measured
   // 9.8 mm mean error against 3.1 mm after ORB-SLAM2's second pass.
   const double one = mean_point_error(r.points, s.truth.points);
