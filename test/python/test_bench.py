@@ -39,6 +39,9 @@ def test_suite_runs_and_reports(tiny_suite):
         assert r["tracked_fraction"] > 0.9
         assert r["peak_rss_mb"] > 50  # the child's own resident memory, numpy and the core loaded
         assert r["track_call_ms_median"] > 0 and r["frame_ms_median"] > 0
+        # The final map's keyframes, and how many it was given, the ones culled as redundant included.
+        assert r["keyframes"] >= 2 and r["keyframes_made"] >= r["keyframes"]
+        assert r["keyframes_made"] == r["keyframes"] + r["stats"]["map"]["keyframes_culled"]
     # A 20-frame synthetic RGB-D clip (0.5 m path) with movers, mapping asynchronous. dm: centimetre-level
     # (measured 0.008-0.010 m over 6 runs). off is dragged by the movers (0.20-0.27 m over 11 runs, CI
     # included): bounded by the path's size, and far worse than dm, which shows the problem is real.
@@ -350,6 +353,13 @@ def test_report_renders_from_results(tmp_path):
     assert "| s | stereo | 0.0300 | 0.0100 | 3.00 | 45.0 | 60.0 | 0.75 | 0.67 |" in text  # run 1 has no peer run
     assert "0.0300 (0.0200-0.0400)" in text
     assert "s:stereo:li: died of signal SIGSEGV" in text and "- x: why" in text
+    # Keyframes in the final map, medians over the runs; ours with how many the map was given in all.
+    records[0].update(keyframes=10, keyframes_made=30)
+    records[1].update(keyframes=14, keyframes_made=40)
+    records[2].update(keyframes=19, keyframes_made=None)
+    (tmp_path / "results.json").write_text(json.dumps(results))
+    text = report.write(report.load(tmp_path), tmp_path).read_text()
+    assert "| 200 | 12 (35) |" in text and "| 200 | 19 |" in text
     # Tracked on far fewer frames than the peer: the ATE ratio is flagged as not comparable.
     records[0]["tracked_fraction"] = records[1]["tracked_fraction"] = 0.1
     (tmp_path / "results.json").write_text(json.dumps(results))
@@ -584,6 +594,7 @@ def test_real_peer_run(tmp_path, synth_rgbd):
     assert stats["realtime"]["rate"] == 1.0 and stats["realtime"]["frames"] == 8
     assert stats["ate"] is not None and stats["ate"]["rmse"] < 0.25
     assert stats["track_call_ms_median"] > 0 and stats["peak_rss_mb"] > 50
+    assert stats["keyframes"] >= 1  # its map at shutdown: its first keyframe at least
 
 
 def test_network_runs_where_there_are_no_label_images(tmp_path, data):

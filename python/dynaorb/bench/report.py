@@ -62,6 +62,8 @@ def aggregate(records: list[dict]) -> list[dict]:
             "labels_ms_median": _median(r.get("labels_ms_median") for r in ok),
             "thread_ms_median": _median(_thread_ms(r) for r in ok),
             "fps": _median(r.get("fps") for r in ok),
+            "keyframes": _median(r.get("keyframes") for r in ok),
+            "keyframes_made": _median(r.get("keyframes_made") for r in ok),
             "peak_rss_mb": _median(r.get("peak_rss_mb") for r in runs),
             "stage_ms_median": {k: statistics.median(v) for k, v in stage.items()},
             "dynamic_stages": dyn.get("stages") if dyn else None,
@@ -176,11 +178,18 @@ def _ate_cell(r: dict) -> str:
 def case_table(rows: list[dict]) -> list[str]:
     return markdown_table(
         ["sequence", "sensor", "system", "runs ok", "ATE RMSE [m] median (min-max)", "RPE trans [m/frame]",
-         "RPE rot [deg/frame]", "tracked", "tracking thread ms/frame", "track call ms/frame", "fps", "peak MB"],
+         "RPE rot [deg/frame]", "tracked", "tracking thread ms/frame", "track call ms/frame", "fps", "peak MB",
+         "keyframes in the final map (made)"],
         ([r["sequence"], r["sensor"], _label(r), f"{r['runs_ok']}/{r['runs']}", _ate_cell(r),
           _f(r["rpe_trans_rmse"], "{:.4f}"), _f(r["rpe_rot_rmse"], "{:.3f}"), _pct(r["tracked_fraction"]),
           _f(r["frame_ms_median"], "{:.1f}", "-"), _f(r["track_call_ms_median"], "{:.1f}"), _f(r["fps"], "{:.1f}"),
-          _f(r["peak_rss_mb"], "{:.0f}")] for r in rows))
+          _f(r["peak_rss_mb"], "{:.0f}"), _keyframes_cell(r)] for r in rows))
+
+
+def _keyframes_cell(r: dict) -> str:
+    """Medians over the runs: the final map's keyframes, and (ours) how many it was given, the culled included."""
+    cell = _f(r.get("keyframes"), "{:g}")
+    return cell + (f" ({r['keyframes_made']:g})" if r.get("keyframes_made") is not None else "")
 
 
 # Tracked fractions further apart than this: the two ATEs are over different
@@ -433,7 +442,10 @@ def render(results: dict, out: pathlib.Path, plots: dict | None = None, stages_p
              "While the motion cues are computed, the same worker cuts the candidate regions DM-SLAM's stage "
              "decides on: *regions_ahead (worker)*, not in the sum.",
              "- fps: frames over the whole loop's wall time (image loading included). Peak MB: the run's process "
-             "(VmHWM of its own address space), for ORB-SLAM3 the worker's python process.",
+             "(VmHWM of its own address space), for ORB-SLAM3 the worker's python process. Keyframes: those "
+             "in the map at the end (the current map, where tracking started a new one), medians over the runs; "
+             "for dynaorb also how many that map was given in all, the ones local mapping culled as redundant "
+             "included (ORB-SLAM3 does not report that).",
              "- ATE: evo, SE3 alignment (Sim3 for monocular), RMSE of the position error; RPE per frame. "
              "*ATE ours/theirs over the frames both tracked*: run r of each system cut to the frames both "
              "trajectories hold, each cut aligned and evaluated on its own, medians over the run pairs (where "

@@ -175,7 +175,17 @@ def _metrics(stats: dict) -> dict:
         "track_call_plus_labels_ms_median": stats.get("track_call_plus_labels_ms_median"),
         "fps": stats.get("fps"),
         "stage_ms_median": stats.get("stage_ms_median"),
+        **_keyframes(stats),
     }
+
+
+def _keyframes(stats: dict) -> dict:
+    """Keyframes in the final map, and for ours how many that map was given in all (those culled as
+    redundant included); the peer reports the first only."""
+    m = stats.get("map")
+    if not m:
+        return {"keyframes": stats.get("keyframes"), "keyframes_made": None}
+    return {"keyframes": m.get("keyframes"), "keyframes_made": m.get("keyframes", 0) + m.get("keyframes_culled", 0)}
 
 
 def _peer_record(seq: Sequence, run: int, root: pathlib.Path, python, vocabulary, timeout_s: float,

@@ -321,6 +321,7 @@ def run(case: PeerCase, python: pathlib.Path, vocabulary: pathlib.Path, timeout_
     stats.update({k: peer[k] for k in ("pyorbslam3", "frames", "states", "tracked_frames", "init_s",
                                        "track_call_ms_median", "track_call_ms", "trajectory_poses")})
     stats["trajectory_repeats_dropped"] = peer.get("trajectory_repeats_dropped")
+    stats["keyframes"] = peer.get("keyframes")  # in its map at shutdown
     stats["realtime"] = peer.get("realtime")
     stats["tracked_fraction"] = peer["tracked_frames"] / max(peer["frames"], 1)
     # Frames over the loop's wall time (image loading included), as dynaorb's runner counts fps.

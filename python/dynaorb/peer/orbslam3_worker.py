@@ -16,9 +16,10 @@ runner/pacing.py, a file without imports of dynaorb, loaded by its path).
 
 Each track call is timed with a wall clock, image loading outside the timed
 window (ORB-SLAM3 rectifies stereo pairs inside the call, as dynaorb does).
-The result holds per frame: ms, tracking state and tracked map points; and
-the trajectory ORB-SLAM3 saves at shutdown (its keyframe-relative poses),
-converted from its EuRoC file (nanoseconds) to TUM (seconds).
+The result holds per frame: ms, tracking state and tracked map points; the
+trajectory ORB-SLAM3 saves at shutdown (its keyframe-relative poses),
+converted from its EuRoC file (nanoseconds) to TUM (seconds); and how many
+keyframes its map holds then (from its keyframe trajectory file).
 """
 from __future__ import annotations
 
@@ -63,6 +64,15 @@ def _euroc_to_tum(src: str, dst: str) -> tuple[int, int]:
         for r in rows:
             f.write(f"{r[0]:.9f} " + " ".join(f"{x:.9f}" for x in r[1:]) + "\n")
     return len(rows), repeats
+
+
+def _keyframes(slam, path: str) -> int | None:
+    """The keyframes of ORB-SLAM3's map at shutdown (the poses it saves for them), None where it cannot say."""
+    try:
+        slam.save_keyframe_trajectory_tum(path)
+        return sum(1 for line in open(path) if line.strip() and not line.startswith("#"))
+    except (AttributeError, OSError, RuntimeError):  # an older pyorbslam3, or nothing written
+        return None
 
 
 def _vm_hwm_mb() -> float | None:
@@ -132,6 +142,7 @@ def main(manifest_path: str) -> int:
     euroc = manifest["trajectory"] + ".euroc"
     slam.save_trajectory_euroc(euroc)
     poses, repeats = _euroc_to_tum(euroc, manifest["trajectory"])
+    keyframes = _keyframes(slam, manifest["trajectory"] + ".keyframes")
     ms = [f["ms"] for f in per_frame]
     result = {
         "pyorbslam3": _version("pyorbslam3"),
@@ -140,6 +151,7 @@ def main(manifest_path: str) -> int:
         "tracked_frames": states.get("OK", 0),
         "trajectory_poses": poses,
         "trajectory_repeats_dropped": repeats,
+        "keyframes": keyframes,
         "init_s": init_s,
         "loop_s": loop_s,
         "track_call_ms_median": statistics.median(ms) if ms else None,
