@@ -233,6 +233,11 @@ struct TrackerOptions {
   // fps). -1: the settings' Camera.fps (System), 30 where none is given;
   // a value set here wins over Camera.fps.
   int max_frames = -1;
+  // No keyframe within min_frames frames of the last, however idle local
+  // mapping is (ORB-SLAM2 / ORB-SLAM3: 0). 2 for monocular was measured and
+  // not taken (docs/slam-core.md, "A monocular keyframe at most every
+  // second frame"): lower ATE without movers and when synchronous, none
+  // paced with movers, and the `full` / static ratio above 1.2.
   int min_frames = 0;
   // A map of at most this many keyframes is dropped, and the next frame
   // initialises a new one, once tracking has been lost for reset_after_lost
