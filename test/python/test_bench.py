@@ -568,8 +568,9 @@ def test_readme_section_is_replaced(tmp_path):
     assert readme.replace_section(new, "again").count(readme.BEGIN) == 1
     with pytest.raises(ValueError):
         readme.replace_section("# no markers\n", "x")
-    results = {"suite": "quick", "runs": 1, "records": [_record("s:stereo:off", "dynaorb", "off", 0.02, 40.0),
-                                                         _record("s:stereo:orbslam3", "orbslam3", "off", 0.01, 60.0)],
+    ours = {**_record("s:stereo:off", "dynaorb", "off", 0.02, 40.0), "keyframes": 12, "keyframes_made": 30}
+    theirs = {**_record("s:stereo:orbslam3", "orbslam3", "off", 0.01, 60.0), "keyframes": 20}
+    results = {"suite": "quick", "runs": 1, "records": [ours, theirs],
                "not_run": [], "peer": {"status": "run"}, "machine": {"cpus": 2}}
     (tmp_path / "results.json").write_text(json.dumps(results))
     path = tmp_path / "README.md"
@@ -577,6 +578,10 @@ def test_readme_section_is_replaced(tmp_path):
     readme.update_readme(path, tmp_path)
     body = path.read_text()
     assert "| s | stereo | 0.0200 | 0.0100 | 2.00 |" in body and "old numbers" not in body
+    # Every case of both systems, with the final map's keyframes (and ours made).
+    cases = body.split("Every case, both systems")[1]
+    assert "| s | stereo | dynaorb off | 0.0200 |" in cases and cases.count("| 12 (30) |") == 1
+    assert "| s | stereo | ORB-SLAM3 | 0.0100 |" in cases and "| 20 |" in cases
 
 
 def test_real_peer_run(tmp_path, synth_rgbd):
