@@ -177,6 +177,46 @@ def test_peer_ratios_are_ours_over_orbslam3_seed_by_seed():
     assert "| 0 | 3.00 | 3.30 | 2.50 | 11.00 | 5.00 | 1.10 | 1.67 | 60 / 60 / 60 / 60 / 60 of 60 |" in text
 
 
+def test_paced_peer_sweeps_compare_speed_seed_by_seed(tmp_path):
+    """--realtime with the peer: ms ours / ORB-SLAM3's per seed, whole clip and over the frames both tracked."""
+    def run(seed, condition, ms, per_frame):
+        out = tmp_path / "runs" / f"s{seed}" / condition
+        out.mkdir(parents=True)
+        peer = condition.startswith("peer")
+        key = "ms" if peer else "track_call_ms"
+        frames = [{"stamp": 0.05 * i, "state": "OK" if ok else "NOT_INITIALIZED", key: t}
+                  for i, (ok, t) in enumerate(per_frame)]
+        (out / ("peer.json" if peer else "stats.json")).write_text(json.dumps({"per_frame": frames}))
+        return {**_record("mono", seed, condition, 0.004), "out": str(out), "track_call_ms_median": ms}
+
+    # Seed 0: ours tracks from frame 2, the peer from frame 6 (its first frames cost 25 ms): over the whole
+    # clip ours 10 / 9 ms, over frames 6-19 both 8 ms against 9 ms.
+    ours0 = [(i >= 2, 13.0 if i < 6 else 8.0) for i in range(20)]
+    theirs0 = [(i >= 6, 25.0 if i < 6 else 9.0) for i in range(20)]
+    ours1 = [(True, 6.0)] * 20
+    theirs1 = [(True, 12.0)] * 20
+    records = [run(0, "full", 10.0, ours0), run(0, "peer_movers", 9.0, theirs0),
+               run(1, "full", 6.0, ours1), run(1, "peer_movers", 12.0, theirs1),
+               _record("mono", 0, "static", 0.004), _record("mono", 1, "static", 0.004)]
+    results = {"options": {"seeds": [0, 1], "frames": 20, "width": 640, "height": 480, "sensors": ["mono"],
+                           "realtime": 1.0},
+               "conditions": {"static": {}, "full": {}, "peer_movers": {}}, "targets": {"full": ["<=", 1.2]},
+               "records": records, "started": "t0", "finished": "t1"}
+    by = seeds_peer.speed_ratios(results)
+    assert by[("mono", "full")][0] == pytest.approx((10.0 / 9.0, 8.0 / 9.0))
+    assert by[("mono", "full")][1] == pytest.approx((0.5, 0.5))
+    row, = seeds_peer.speed_summary(results, ("rgbd", "stereo", "mono"), (0, 1, 2))
+    assert row["median"] == pytest.approx((10.0 / 9.0 + 0.5) / 2) and row["no_slower"] == 1 and row["compared"] == 2
+    assert row["common_median"] == pytest.approx((8.0 / 9.0 + 0.5) / 2) and row["test_seeds_median"] is None
+    text = render(results)
+    assert "## Speed against ORB-SLAM3" in text and "| mono | full | peer_movers | 2 | 0.81 | - | 1/2 | 0.69 (2 seeds) |" in text
+    assert "| 0 | 1.11 / 0.89 |" in text and "| 1 | 0.50 / 0.50 |" in text
+    # Synchronous: our track call waits for mapping, no speed ratio.
+    results["options"]["realtime"] = 0.0
+    text = render(results)
+    assert "## Speed against ORB-SLAM3" not in text and "not compared in a synchronous sweep" in text
+
+
 def test_peer_conditions_run_orbslam3_on_the_same_rooms(tmp_path, monkeypatch, data):
     """The peer's runs get the room of their condition and land in the records; without pyorbslam3 they are
     recorded as failed and the sweep goes on."""

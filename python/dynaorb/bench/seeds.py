@@ -207,7 +207,10 @@ def _run(seq: Sequence, sensor: str, seed: int, condition: str, out: pathlib.Pat
         ate = stats.get("ate")
         record.update(ate_rmse=ate["rmse"] if ate else None, ate_reason=None if ate else stats.get("reason"),
                       align=stats.get("align"), tracked_fraction=stats.get("tracked_fraction"),
-                      frames=stats.get("frames"), tracked_frames=stats.get("tracked_frames"))
+                      frames=stats.get("frames"), tracked_frames=stats.get("tracked_frames"),
+                      # the track call with the labels' time, as the full suite's pair tables compare it
+                      track_call_ms_median=stats.get("track_call_ms_median"),
+                      track_call_plus_labels_ms_median=stats.get("track_call_plus_labels_ms_median"))
     else:
         record["error"] = (child.failure() or "no result written") + "\n" + child.log_tail()
     return keep_record(out, record)
@@ -259,7 +262,7 @@ def run_seeds(opts: SeedsOptions, progress=print) -> dict:
     results["finished"] = datetime.datetime.now().isoformat(timespec="seconds")
     results["summary"] = summarize(results)
     _save(out, results)
-    (out / "seeds.md").write_text(render(results))
+    (out / "seeds.md").write_text(render(results, out))
     return results
 
 
@@ -324,7 +327,9 @@ def _mm(v) -> str:
     return "n/a" if v is None else f"{v * 1000:.2f}"
 
 
-def render(results: dict) -> str:
+def render(results: dict, out_dir: pathlib.Path | None = None) -> str:
+    """seeds.md; out_dir: the sweep's folder, where the speed table finds the runs' per-frame times when
+    the recorded paths no longer lead there."""
     from dynaorb.bench.report import markdown_table
 
     opts = results["options"]
@@ -376,6 +381,7 @@ def render(results: dict) -> str:
             rows.append(row)
         lines += markdown_table(header, rows)
     lines += seeds_peer.render(results, SENSORS, TEST_SEEDS)
+    lines += seeds_peer.render_speed(results, SENSORS, TEST_SEEDS, out_dir)
     failed = [r for r in results["records"] if r.get("error")]
     if failed:
         lines += ["", "## Failed runs", ""]

@@ -13,11 +13,21 @@ settings and vocabulary) runs on every seed's room:
 Ratios are ours / ORB-SLAM3 on the same seed (issue 8: `full` no worse
 than ORB-SLAM3's plain mode). ORB-SLAM3 maps in its own threads, so its
 runs do not repeat as ours (synchronous, equal to rounding) do.
+
+Paced sweeps (`--realtime`: ours with asynchronous mapping, both fed at
+the recording's rate) compare speed as well, seed by seed: ms per frame
+ours / ORB-SLAM3's, over the whole clip (the full suite's pair tables'
+medians: ours the track call with the labels' time) and over the frames
+both tracked (common_frames.run_pair_ms: before its map a system does other
+work). Synchronous sweeps do not: there our track call waits for each
+keyframe's mapping.
 """
 from __future__ import annotations
 
 import pathlib
 import statistics
+
+from dynaorb.bench import common_frames
 
 # peer condition -> whether its room has the movers
 PEER_CONDITIONS = {"peer_static": False, "peer_movers": True}
@@ -87,3 +97,78 @@ def render(results: dict, sensors, test_seeds) -> list[str]:
               f"{r['no_worse']}/{r['seeds']}"] for r in rows]
     return lines + markdown_table(["sensor", "ours", "ORB-SLAM3", "seeds", "median ours / theirs",
                                    "seeds 0-2 median", "seeds no worse"], table)
+
+
+def _ms(record: dict):
+    """A run's median ms per frame: ours the track call with the labels' time, the peer's its track call."""
+    return record.get("track_call_plus_labels_ms_median") or record.get("track_call_ms_median")
+
+
+def speed_ratios(results: dict, out_dir: pathlib.Path | None = None) -> dict:
+    """{(sensor, our condition): {seed: (whole-clip ms ratio or None, common-frames ms ratio or None)}},
+    ours / ORB-SLAM3's on the same seed's room, for the seeds where both runs finished."""
+    runs = {(r["sensor"], r["seed"], r["condition"]): r for r in results["records"] if not r.get("error")}
+    out: dict = {}
+    for (sensor, seed, condition), ours in runs.items():
+        theirs = runs.get((sensor, seed, PEER_OF.get(condition))) if condition in PEER_OF else None
+        if theirs is None:
+            continue
+        a, b = _ms(ours), _ms(theirs)
+        whole = a / b if a and b else None
+        pair = common_frames.run_pair_ms(ours, theirs, out_dir)
+        common = pair["ours"] / pair["theirs"] if pair and pair["theirs"] > 0 else None
+        if whole is not None or common is not None:
+            out.setdefault((sensor, condition), {})[seed] = (whole, common)
+    return out
+
+
+def speed_summary(results: dict, sensors, test_seeds, out_dir: pathlib.Path | None = None) -> list[dict]:
+    """Per sensor and our condition: seeds compared, median of each ratio, seeds 0-2 median (whole clip), seeds
+    where ours is at most ORB-SLAM3's (whole clip)."""
+    rows = []
+    order = list(PEER_OF)
+    by = speed_ratios(results, out_dir)
+    for (sensor, condition), per_seed in sorted(by.items(), key=lambda kv: (sensors.index(kv[0][0]),
+                                                                           order.index(kv[0][1]))):
+        whole = [per_seed[s][0] for s in sorted(per_seed) if per_seed[s][0] is not None]
+        common = [per_seed[s][1] for s in sorted(per_seed) if per_seed[s][1] is not None]
+        tested = [per_seed[s][0] for s in test_seeds if s in per_seed and per_seed[s][0] is not None]
+        rows.append({"sensor": sensor, "condition": condition, "peer": PEER_OF[condition], "seeds": len(per_seed),
+                     "median": statistics.median(whole) if whole else None,
+                     "common_median": statistics.median(common) if common else None, "common_seeds": len(common),
+                     "test_seeds_median": statistics.median(tested) if len(tested) == len(test_seeds) else None,
+                     "no_slower": sum(v <= TARGET[1] for v in whole), "compared": len(whole)})
+    return rows
+
+
+def render_speed(results: dict, sensors, test_seeds, out_dir: pathlib.Path | None = None) -> list[str]:
+    """The report's speed section against ORB-SLAM3: paced sweeps only (none without a peer run)."""
+    from dynaorb.bench.report import markdown_table
+
+    if not any(r.get("condition") in PEER_CONDITIONS for r in results["records"]):
+        return []
+    if not results["options"].get("realtime"):
+        return ["", "Speed against ORB-SLAM3: not compared in a synchronous sweep (our track call waits for each "
+                "keyframe's mapping there); `--realtime` runs both as a camera feeds them and compares it."]
+    rows = speed_summary(results, sensors, test_seeds, out_dir)
+    if not rows:
+        return []
+    f = lambda v: "-" if v is None else f"{v:.2f}"  # noqa: E731
+    lines = ["", "## Speed against ORB-SLAM3", "",
+             "ms per frame ours / ORB-SLAM3's on the same seed's room, paced: medians of each run's frames over "
+             "the whole clip (ours the track call with the labels' time, theirs the track call) and over the "
+             "frames both tracked; at most ORB-SLAM3's is a ratio <= 1.", ""]
+    lines += markdown_table(
+        ["sensor", "ours", "ORB-SLAM3", "seeds", "median ours / theirs", "seeds 0-2 median", "seeds no slower",
+         "median over the frames both tracked"],
+        [[r["sensor"], r["condition"], r["peer"], r["seeds"], f(r["median"]), f(r["test_seeds_median"]),
+          f"{r['no_slower']}/{r['compared']}", f"{f(r['common_median'])} ({r['common_seeds']} seeds)"] for r in rows])
+    by = speed_ratios(results, out_dir)
+    for sensor in [s for s in sensors if any(k[0] == s for k in by)]:
+        conditions = [c for c in PEER_OF if (sensor, c) in by]
+        seeds = sorted({s for c in conditions for s in by[(sensor, c)]})
+        lines += ["", f"{sensor}, seed by seed (whole clip / over the frames both tracked):", ""]
+        lines += markdown_table(["seed"] + [f"{c} / {PEER_OF[c]}" for c in conditions],
+                                [[s] + [" / ".join(f(v) for v in by[(sensor, c)][s]) if s in by[(sensor, c)] else "-"
+                                        for c in conditions] for s in seeds])
+    return lines

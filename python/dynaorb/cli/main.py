@@ -211,7 +211,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="seeds: comma list of static (no movers), full (movers, --preset with the label images), "
                         "masks (movers, ground-truth masks), off (movers, no filter), full_static (no movers, --preset with "
                         "the label images), peer_static / peer_movers "
-                        "(ORB-SLAM3 without / with the movers, compared seed by seed); static is required")
+                        "(ORB-SLAM3 without / with the movers, compared seed by seed: ATE, and with --realtime speed); static is required")
     b.add_argument("--preset", default="full",
                    help="seeds: what the full and full_static conditions run, a preset name or YAML file (default full)")
     b.add_argument("--synth-root", metavar="DIR",
