@@ -122,12 +122,13 @@ def speed_ratios(results: dict, out_dir: pathlib.Path | None = None) -> dict:
     return out
 
 
-def speed_summary(results: dict, sensors, test_seeds, out_dir: pathlib.Path | None = None) -> list[dict]:
+def speed_summary(results: dict, sensors, test_seeds, out_dir: pathlib.Path | None = None,
+                  by: dict | None = None) -> list[dict]:
     """Per sensor and our condition: seeds compared, median of each ratio, seeds 0-2 median (whole clip), seeds
-    where ours is at most ORB-SLAM3's (whole clip)."""
+    where ours is at most ORB-SLAM3's (whole clip). by: speed_ratios' answer, when the caller has it."""
     rows = []
     order = list(PEER_OF)
-    by = speed_ratios(results, out_dir)
+    by = speed_ratios(results, out_dir) if by is None else by
     for (sensor, condition), per_seed in sorted(by.items(), key=lambda kv: (sensors.index(kv[0][0]),
                                                                            order.index(kv[0][1]))):
         whole = [per_seed[s][0] for s in sorted(per_seed) if per_seed[s][0] is not None]
@@ -143,17 +144,21 @@ def speed_summary(results: dict, sensors, test_seeds, out_dir: pathlib.Path | No
 
 def render_speed(results: dict, sensors, test_seeds, out_dir: pathlib.Path | None = None) -> list[str]:
     """The report's speed section against ORB-SLAM3: paced sweeps only (none without a peer run)."""
-    from dynaorb.bench.report import markdown_table
+    from dynaorb.bench.report import _f, markdown_table
 
     if not any(r.get("condition") in PEER_CONDITIONS for r in results["records"]):
         return []
     if not results["options"].get("realtime"):
         return ["", "Speed against ORB-SLAM3: not compared in a synchronous sweep (our track call waits for each "
                 "keyframe's mapping there); `--realtime` runs both as a camera feeds them and compares it."]
-    rows = speed_summary(results, sensors, test_seeds, out_dir)
+    by = speed_ratios(results, out_dir)
+    rows = speed_summary(results, sensors, test_seeds, by=by)
     if not rows:
         return []
-    f = lambda v: "-" if v is None else f"{v:.2f}"  # noqa: E731
+
+    def f(v):
+        return _f(v, "{:.2f}", "-")
+
     lines = ["", "## Speed against ORB-SLAM3", "",
              "ms per frame ours / ORB-SLAM3's on the same seed's room, paced: medians of each run's frames over "
              "the whole clip (ours the track call with the labels' time, theirs the track call) and over the "
@@ -163,7 +168,6 @@ def render_speed(results: dict, sensors, test_seeds, out_dir: pathlib.Path | Non
          "median over the frames both tracked"],
         [[r["sensor"], r["condition"], r["peer"], r["seeds"], f(r["median"]), f(r["test_seeds_median"]),
           f"{r['no_slower']}/{r['compared']}", f"{f(r['common_median'])} ({r['common_seeds']} seeds)"] for r in rows])
-    by = speed_ratios(results, out_dir)
     for sensor in [s for s in sensors if any(k[0] == s for k in by)]:
         conditions = [c for c in PEER_OF if (sensor, c) in by]
         seeds = sorted({s for c in conditions for s in by[(sensor, c)]})
