@@ -160,7 +160,8 @@ def render_speed(results: dict, sensors, test_seeds, out_dir: pathlib.Path | Non
         return _f(v, "{:.2f}", "-")
 
     lines = ["", "## Speed against ORB-SLAM3", "",
-             "ms per frame ours / ORB-SLAM3's on the same seed's room, paced: medians of each run's frames over "
+             "ms per frame ours / ORB-SLAM3's on the same seed's room, both fed at the sweep's rate (above): medians of "
+             "each run's frames over "
              "the whole clip (ours the track call with the labels' time, theirs the track call) and over the "
              "frames both tracked; at most ORB-SLAM3's is a ratio <= 1.", ""]
     lines += markdown_table(
