@@ -27,7 +27,7 @@ from __future__ import annotations
 import pathlib
 import statistics
 
-from dynaorb.bench import common_frames
+from dynaorb.bench import common_frames, report
 
 # peer condition -> whether its room has the movers
 PEER_CONDITIONS = {"peer_static": False, "peer_movers": True}
@@ -84,8 +84,6 @@ def summarize(results: dict, sensors, test_seeds) -> list[dict]:
 
 def render(results: dict, sensors, test_seeds) -> list[str]:
     """The report's "Against ORB-SLAM3" section (no lines when no peer run has an ATE)."""
-    from dynaorb.bench.report import markdown_table
-
     rows = summarize(results, sensors, test_seeds)
     if not rows:
         return []
@@ -95,13 +93,8 @@ def render(results: dict, sensors, test_seeds) -> list[str]:
     table = [[r["sensor"], r["condition"], r["peer"], r["seeds"], f"{r['median']:.2f}",
               "-" if r["test_seeds_median"] is None else f"{r['test_seeds_median']:.2f}",
               f"{r['no_worse']}/{r['seeds']}"] for r in rows]
-    return lines + markdown_table(["sensor", "ours", "ORB-SLAM3", "seeds", "median ours / theirs",
+    return lines + report.markdown_table(["sensor", "ours", "ORB-SLAM3", "seeds", "median ours / theirs",
                                    "seeds 0-2 median", "seeds no worse"], table)
-
-
-def _ms(record: dict):
-    """A run's median ms per frame: ours the track call with the labels' time, the peer's its track call."""
-    return record.get("track_call_plus_labels_ms_median") or record.get("track_call_ms_median")
 
 
 def speed_ratios(results: dict, out_dir: pathlib.Path | None = None) -> dict:
@@ -113,7 +106,8 @@ def speed_ratios(results: dict, out_dir: pathlib.Path | None = None) -> dict:
         theirs = runs.get((sensor, seed, PEER_OF.get(condition))) if condition in PEER_OF else None
         if theirs is None:
             continue
-        a, b = _ms(ours), _ms(theirs)
+        # As the full suite's pair tables: ours the track call with the labels' time, the peer's its track call.
+        a, b = report._thread_ms(ours), report._thread_ms(theirs)
         whole = a / b if a and b else None
         pair = common_frames.run_pair_ms(ours, theirs, out_dir)
         common = pair["ours"] / pair["theirs"] if pair and pair["theirs"] > 0 else None
@@ -144,8 +138,6 @@ def speed_summary(results: dict, sensors, test_seeds, out_dir: pathlib.Path | No
 
 def render_speed(results: dict, sensors, test_seeds, out_dir: pathlib.Path | None = None) -> list[str]:
     """The report's speed section against ORB-SLAM3: paced sweeps only (none without a peer run)."""
-    from dynaorb.bench.report import _f, markdown_table
-
     if not any(r.get("condition") in PEER_CONDITIONS for r in results["records"]):
         return []
     if not results["options"].get("realtime"):
@@ -157,14 +149,14 @@ def render_speed(results: dict, sensors, test_seeds, out_dir: pathlib.Path | Non
         return []
 
     def f(v):
-        return _f(v, "{:.2f}", "-")
+        return report._f(v, "{:.2f}", "-")
 
     lines = ["", "## Speed against ORB-SLAM3", "",
              "ms per frame ours / ORB-SLAM3's on the same seed's room, both fed at the sweep's rate (above): medians of "
              "each run's frames over "
              "the whole clip (ours the track call with the labels' time, theirs the track call) and over the "
              "frames both tracked; at most ORB-SLAM3's is a ratio <= 1.", ""]
-    lines += markdown_table(
+    lines += report.markdown_table(
         ["sensor", "ours", "ORB-SLAM3", "seeds", "median ours / theirs", "seeds 0-2 median", "seeds no slower",
          "median over the frames both tracked"],
         [[r["sensor"], r["condition"], r["peer"], r["seeds"], f(r["median"]), f(r["test_seeds_median"]),
@@ -173,7 +165,7 @@ def render_speed(results: dict, sensors, test_seeds, out_dir: pathlib.Path | Non
         conditions = [c for c in PEER_OF if (sensor, c) in by]
         seeds = sorted({s for c in conditions for s in by[(sensor, c)]})
         lines += ["", f"{sensor}, seed by seed (whole clip / over the frames both tracked):", ""]
-        lines += markdown_table(["seed"] + [f"{c} / {PEER_OF[c]}" for c in conditions],
+        lines += report.markdown_table(["seed"] + [f"{c} / {PEER_OF[c]}" for c in conditions],
                                 [[s] + [" / ".join(f(v) for v in by[(sensor, c)][s]) if s in by[(sensor, c)] else "-"
                                         for c in conditions] for s in seeds])
     return lines
