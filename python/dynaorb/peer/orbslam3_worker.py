@@ -70,7 +70,8 @@ def _keyframes(slam, path: str) -> int | None:
     """The keyframes of ORB-SLAM3's map at shutdown (the poses it saves for them), None where it cannot say."""
     try:
         slam.save_keyframe_trajectory_tum(path)
-        return sum(1 for line in open(path) if line.strip() and not line.startswith("#"))
+        with open(path) as f:
+            return sum(1 for line in f if line.strip() and not line.startswith("#"))
     except (AttributeError, OSError, RuntimeError):  # an older pyorbslam3, or nothing written
         return None
 
