@@ -211,6 +211,15 @@ def test_paced_peer_sweeps_compare_speed_seed_by_seed(tmp_path):
     text = render(results)
     assert "## Speed against ORB-SLAM3" in text and "| mono | full | peer_movers | 2 | 0.81 | - | 1/2 | 0.69 (2 seeds) |" in text
     assert "| 0 | 1.11 / 0.89 |" in text and "| 1 | 0.50 / 0.50 |" in text
+    # Seed 2 without its per-frame file (the ratio of the medians still), seed 3's peer run failed: no pair.
+    missing = {**_record("mono", 2, "full", 0.004), "out": str(tmp_path / "runs" / "gone"), "track_call_ms_median": 9.0}
+    records += [missing, run(2, "peer_movers", 10.0, theirs1), run(3, "full", 6.0, ours1),
+                _record("mono", 3, "peer_movers", error="ORB-SLAM3 died of signal SIGSEGV")]
+    by = seeds_peer.speed_ratios(results)
+    assert by[("mono", "full")][2] == (pytest.approx(0.9), None) and 3 not in by[("mono", "full")]
+    row, = seeds_peer.speed_summary(results, ("rgbd", "stereo", "mono"), (0, 1, 2))
+    assert row["seeds"] == 3 and row["compared"] == 3 and row["common_seeds"] == 2
+    assert "| 2 | 0.90 / - |" in render(results)
     # Synchronous: our track call waits for mapping, no speed ratio.
     results["options"]["realtime"] = 0.0
     text = render(results)
